@@ -1,0 +1,1 @@
+//! The dataset generator: deterministic per-sample seeds, sharding, parallel, resumable.

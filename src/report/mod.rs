@@ -1,0 +1,1 @@
+//! Tables, plots and benchmarks: error against run time.
