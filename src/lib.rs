@@ -16,6 +16,7 @@ pub mod imaging;
 pub mod io;
 pub mod optics;
 pub mod report;
+pub mod rng;
 pub mod scene;
 pub mod types;
 

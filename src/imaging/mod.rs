@@ -1,1 +1,13 @@
 //! The camera model (Notes S4–S5, Eqs. S1–S4): a pipeline of stages built from a config.
+
+pub mod config;
+pub mod convolve;
+pub mod fft2;
+pub mod noise;
+pub mod pipeline;
+pub mod tone;
+
+pub use config::CameraConfig;
+pub use convolve::ConvMethod;
+pub use noise::{NoiseConfig, NoiseModel};
+pub use pipeline::{Camera, Stage};
