@@ -1,1 +1,13 @@
 //! What the camera looks at: procedural layered scenes with exact flow, test patterns, readers.
+
+pub mod affine;
+pub mod chairs;
+pub mod layered;
+pub mod patterns;
+pub mod shape;
+pub mod texture;
+
+pub use affine::Affine;
+pub use chairs::ChairsConfig;
+pub use layered::{Fill, Layer, LayeredScene};
+pub use shape::Shape;

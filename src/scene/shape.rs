@@ -1,0 +1,83 @@
+//! Sprite silhouettes in the sprite's own coordinates: smooth star-shaped blobs (the
+//! FlyingChairs-like foreground objects), polygons (the Note S12 rocket), discs.
+
+use serde::{Deserialize, Serialize};
+
+/// A region of the plane around the local origin.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shape {
+    /// Covers everything (a background).
+    Full,
+    /// `|p| ≤ radius`.
+    Disc { radius: f64 },
+    /// Star-convex blob: `|p| ≤ r(θ) = radius·(1 + Σ_k amp_k cos(k·θ + phase_k))`.
+    Blob { radius: f64, harmonics: Vec<(u32, f64, f64)> },
+    /// A simple polygon (even-odd rule), vertices in order.
+    Polygon { vertices: Vec<(f64, f64)> },
+}
+
+impl Shape {
+    /// True if the local point (x, y) is inside.
+    pub fn contains(&self, x: f64, y: f64) -> bool {
+        match self {
+            Shape::Full => true,
+            Shape::Disc { radius } => x * x + y * y <= radius * radius,
+            Shape::Blob { radius, harmonics } => {
+                let r2 = x * x + y * y;
+                if r2 > self.bound_radius().powi(2) {
+                    return false;
+                }
+                let theta = y.atan2(x);
+                let r = radius
+                    * (1.0 + harmonics.iter().map(|&(k, a, p)| a * (k as f64 * theta + p).cos()).sum::<f64>());
+                r2 <= r * r
+            }
+            Shape::Polygon { vertices } => {
+                let mut inside = false;
+                let n = vertices.len();
+                for i in 0..n {
+                    let (x1, y1) = vertices[i];
+                    let (x2, y2) = vertices[(i + 1) % n];
+                    if (y1 > y) != (y2 > y) && x < x1 + (y - y1) * (x2 - x1) / (y2 - y1) {
+                        inside = !inside;
+                    }
+                }
+                inside
+            }
+        }
+    }
+
+    /// A radius around the local origin outside which nothing is inside (∞ for `Full`).
+    pub fn bound_radius(&self) -> f64 {
+        match self {
+            Shape::Full => f64::INFINITY,
+            Shape::Disc { radius } => *radius,
+            Shape::Blob { radius, harmonics } => {
+                radius * (1.0 + harmonics.iter().map(|h| h.1.abs()).sum::<f64>())
+            }
+            Shape::Polygon { vertices } => vertices
+                .iter()
+                .map(|(x, y)| (x * x + y * y).sqrt())
+                .fold(0.0, f64::max),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn containment() {
+        assert!(Shape::Disc { radius: 2.0 }.contains(1.0, 1.0));
+        assert!(!Shape::Disc { radius: 1.0 }.contains(1.0, 1.0));
+        let square = Shape::Polygon { vertices: vec![(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] };
+        assert!(square.contains(0.5, -0.5));
+        assert!(!square.contains(1.5, 0.0));
+        let blob = Shape::Blob { radius: 10.0, harmonics: vec![(3, 0.3, 0.0)] };
+        assert!(blob.contains(12.0, 0.0)); // r(0) = 13
+        assert!(!blob.contains(-12.0, 0.0)); // r(π) = 7
+        assert!((blob.bound_radius() - 13.0).abs() < 1e-12);
+    }
+}
