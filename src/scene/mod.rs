@@ -4,6 +4,7 @@ pub mod affine;
 pub mod chairs;
 pub mod layered;
 pub mod patterns;
+pub mod readers;
 pub mod shape;
 pub mod texture;
 

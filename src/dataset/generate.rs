@@ -1,0 +1,288 @@
+//! The generator: scene → camera → `NNNNN_img1.png`, `NNNNN_img2.png`, `NNNNN_flow.flo`
+//! (FlyingChairs naming) and a metadata sidecar per sample, in parallel, resumable, with
+//! every byte a function of (config, seed, sample index) alone.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::config::{GeneratorConfig, SceneSpec};
+use super::manifest::{Manifest, SampleMeta, FlowStats};
+use crate::error::{Error, Result};
+use crate::imaging::{Camera, psf_source};
+use crate::io::{self, BitDepth};
+use crate::rng;
+use crate::scene::patterns;
+use crate::scene::readers::{PairPaths, discover};
+use crate::types::{Flow, Image};
+
+/// Shard `index` of `count`: a contiguous block of sample indices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    /// Parses `K/N` with `0 <= K < N`.
+    pub fn parse(s: &str) -> Result<Self> {
+        let bad = || Error::invalid("--shard", format!("expected K/N with 0 <= K < N, got {s:?}"));
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (k, n) = (k.trim().parse::<usize>().map_err(|_| bad())?, n.trim().parse::<usize>().map_err(|_| bad())?);
+        if n == 0 || k >= n {
+            return Err(bad());
+        }
+        Ok(Shard { index: k, count: n })
+    }
+
+    /// The sample indices of this shard out of `total`.
+    pub fn range(&self, total: usize) -> std::ops::Range<usize> {
+        (self.index * total / self.count)..((self.index + 1) * total / self.count)
+    }
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RunSummary {
+    pub generated: usize,
+    pub kept: usize,
+    pub complete: usize,
+    pub total: usize,
+    pub manifest_written: bool,
+}
+
+/// A sample's images and optional flow before they are written.
+struct Rendered {
+    clean: [Image; 2],
+    flow: Option<Flow>,
+    layers: Option<Vec<crate::scene::layered::LayerRecord>>,
+    source: Option<String>,
+}
+
+/// The prepared generator: config, camera and (for dataset scenes) the discovered pairs.
+pub struct Generator {
+    config: GeneratorConfig,
+    camera: Camera,
+    psf_description: String,
+    pairs: Vec<PairPaths>,
+    total: usize,
+}
+
+impl Generator {
+    /// Validates the config, loads the PSF, builds the camera, discovers dataset pairs.
+    pub fn new(config: GeneratorConfig) -> Result<Self> {
+        config.validate()?;
+        let (psf, psf_description) = psf_source::load(&config.camera.psf)?;
+        let camera = Camera::new(&config.camera, psf)?;
+        let (pairs, total) = match &config.scene {
+            SceneSpec::Dataset { path, layout } => {
+                let pairs = discover(path, *layout)?;
+                let total = config.count.min(pairs.len());
+                (pairs, total)
+            }
+            _ => (Vec::new(), config.count),
+        };
+        Ok(Self { config, camera, psf_description, pairs, total })
+    }
+
+    /// Number of samples the run will hold when complete.
+    pub fn total(&self) -> usize {
+        self.total
+    }
+
+    /// Camera stages that run, in order.
+    pub fn stage_names(&self) -> Vec<&'static str> {
+        self.camera.stage_names()
+    }
+
+    /// The seed of sample `index`.
+    pub fn sample_seed(&self, index: usize) -> u64 {
+        rng::derive(self.config.seed, &[index as u64])
+    }
+
+    fn render(&self, index: usize, seed: u64) -> Result<Rendered> {
+        let layered = |scene: crate::scene::LayeredScene| -> Result<Rendered> {
+            let flow = if scene.is_static() { None } else { Some(scene.flow()?) };
+            let clean = [scene.render(0)?, scene.render(1)?];
+            Ok(Rendered { clean, flow, layers: Some(scene.records()), source: None })
+        };
+        match &self.config.scene {
+            SceneSpec::Chairs(c) => layered(c.build(seed)?),
+            SceneSpec::Rocket { step, channels } => layered(patterns::rocket(*step, *channels)),
+            SceneSpec::Disc { radius, channels } => layered(patterns::disc(*radius, *channels)?),
+            SceneSpec::Dataset { .. } => {
+                let pair = &self.pairs[index];
+                let (a, b) = io::read_image_pair(&pair.img1, &pair.img2)?;
+                let flow = match &pair.flow {
+                    Some(p) => {
+                        let f = io::read_flow(p)?;
+                        if (f.height(), f.width()) != (a.height(), a.width()) {
+                            return Err(Error::shape(
+                                format!("flow {}", p.display()),
+                                format!("{}x{} (the images)", a.width(), a.height()),
+                                format!("{}x{}", f.width(), f.height()),
+                            ));
+                        }
+                        Some(f)
+                    }
+                    None => None,
+                };
+                Ok(Rendered { clean: [a, b], flow, layers: None, source: Some(pair.name.clone()) })
+            }
+        }
+    }
+
+    /// Generates (or keeps, if already complete) sample `index` in `dir`.
+    fn sample(&self, dir: &Path, index: usize) -> Result<(SampleMeta, bool)> {
+        let meta_path = dir.join(SampleMeta::file_name(index));
+        if let Some(meta) = SampleMeta::read_complete(&meta_path, dir) {
+            return Ok((meta, false));
+        }
+        let seed = self.sample_seed(index);
+        let r = self.render(index, seed)?;
+        let depth = if self.config.camera.bit_depth == 16 { BitDepth::Sixteen } else { BitDepth::Eight };
+        let mut files = Vec::new();
+        for (k, clean) in r.clean.iter().enumerate() {
+            let purpose = [rng::purpose::NOISE_FRAME1, rng::purpose::NOISE_FRAME2][k];
+            let img = self.camera.apply(clean, rng::derive(seed, &[purpose]))?;
+            let name = format!("{index:05}_img{}.png", k + 1);
+            io::write_image(&dir.join(&name), &img, depth)?;
+            files.push(name);
+            if self.config.save_clean {
+                let name = format!("{index:05}_clean{}.png", k + 1);
+                io::write_image(&dir.join(&name), clean, BitDepth::Sixteen)?;
+                files.push(name);
+            }
+        }
+        let flow_stats = match &r.flow {
+            Some(flow) => {
+                let name = format!("{index:05}_flow.flo");
+                io::write_flo(&dir.join(&name), flow)?;
+                files.push(name);
+                Some(FlowStats::of(flow))
+            }
+            None => None,
+        };
+        let (c, h, w) = r.clean[0].shape();
+        let meta = SampleMeta {
+            index,
+            seed,
+            width: w,
+            height: h,
+            channels: c,
+            files,
+            flow: flow_stats,
+            source: r.source,
+            layers: r.layers,
+        };
+        meta.write(&meta_path)?;
+        Ok((meta, true))
+    }
+
+    /// Runs shard `shard` into `dir`: keeps complete samples, (re)makes the others, and writes
+    /// `manifest.json` once every sample of the whole dataset is complete.
+    pub fn run(&self, dir: &Path, shard: Shard, progress: bool) -> Result<RunSummary> {
+        fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        self.claim(dir)?;
+        remove_stale_temporaries(dir)?;
+        let range = shard.range(self.total);
+        let bar = if progress {
+            let bar = ProgressBar::new(range.len() as u64);
+            bar.set_style(
+                ProgressStyle::with_template("{bar:40} {pos}/{len} samples  {elapsed} (eta {eta})")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            bar
+        } else {
+            ProgressBar::hidden()
+        };
+        let generated = AtomicUsize::new(0);
+        range
+            .clone()
+            .into_par_iter()
+            .try_for_each(|i| -> Result<()> {
+                let (_, made) = self.sample(dir, i)?;
+                if made {
+                    generated.fetch_add(1, Ordering::Relaxed);
+                }
+                bar.inc(1);
+                Ok(())
+            })?;
+        bar.finish_and_clear();
+        let metas: Vec<Option<SampleMeta>> = (0..self.total)
+            .map(|i| SampleMeta::read_complete(&dir.join(SampleMeta::file_name(i)), dir))
+            .collect();
+        let complete = metas.iter().filter(|m| m.is_some()).count();
+        let manifest_written = complete == self.total;
+        if manifest_written {
+            let manifest = Manifest {
+                generator: format!("pins {}", env!("CARGO_PKG_VERSION")),
+                config: self.config.clone(),
+                count: self.total,
+                stages: self.stage_names().iter().map(|s| s.to_string()).collect(),
+                psf: self.psf_description.clone(),
+                samples: metas.into_iter().flatten().collect(),
+            };
+            manifest.write(&dir.join("manifest.json"))?;
+        }
+        let generated = generated.into_inner();
+        Ok(RunSummary { generated, kept: range.len() - generated, complete, total: self.total, manifest_written })
+    }
+
+    /// Records this run's config in `dir/config.json`, refusing a folder made with another.
+    fn claim(&self, dir: &Path) -> Result<()> {
+        let path = dir.join("config.json");
+        let text = serde_json::to_string_pretty(&self.config)
+            .map_err(|e| Error::invalid("config", e.to_string()))?;
+        if path.exists() {
+            let old = fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+            let same = serde_json::from_str::<GeneratorConfig>(&old).map(|c| c == self.config).unwrap_or(false);
+            if !same {
+                return Err(Error::invalid(
+                    "output folder",
+                    format!(
+                        "{} holds a dataset made with another config (see its config.json); \
+                         choose another --out or remove it",
+                        dir.display()
+                    ),
+                ));
+            }
+            return Ok(());
+        }
+        io::write_bytes_atomic(&path, text.as_bytes())
+    }
+}
+
+/// Deletes temporary files left by an interrupted run.
+fn remove_stale_temporaries(dir: &Path) -> Result<()> {
+    for entry in fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.flatten() {
+        let name = entry.file_name();
+        if io::atomic::is_temp_name(&name.to_string_lossy()) {
+            let p: PathBuf = entry.path();
+            fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_partition_the_indices() {
+        assert!(Shard::parse("2/2").is_err());
+        assert!(Shard::parse("x").is_err());
+        let total = 10;
+        let mut all: Vec<usize> = (0..3).flat_map(|k| Shard { index: k, count: 3 }.range(total)).collect();
+        all.sort();
+        assert_eq!(all, (0..total).collect::<Vec<_>>());
+        assert_eq!(Shard::parse(" 1 / 4").unwrap(), Shard { index: 1, count: 4 });
+    }
+}
