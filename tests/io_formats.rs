@@ -331,3 +331,21 @@ fn other_frames_load() {
         "{e}"
     );
 }
+
+#[test]
+fn float_formats_dispatch_by_extension() {
+    use pins::io::{BitDepth, write_image};
+    let dir = tempfile::tempdir().unwrap();
+    let im = Image::from_vec(3, 4, 6, (0..72).map(|i| i as f32 / 50.0 - 0.2).collect()).unwrap();
+    for ext in ["exr", "pfm", "npy", "EXR"] {
+        let p = dir.path().join(format!("im.{ext}"));
+        write_image(&p, &im, BitDepth::Eight).unwrap();
+        assert_eq!(
+            read_image(&p).unwrap(),
+            im,
+            "{ext}: floats are kept, depth ignored"
+        );
+    }
+    // Nothing but the finished files is left in the directory.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 4);
+}

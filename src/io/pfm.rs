@@ -179,13 +179,16 @@ pub fn decode_pfm(bytes: &[u8], path: &Path) -> Result<Image> {
             ));
         }
     }
-    // Tolerate a CR LF line ending.
-    if bytes.get(hd.pos - 1) == Some(&b'\r') && bytes.get(hd.pos) == Some(&b'\n') {
+    let n = w * h * channels;
+    let need = 4 * n;
+    // Tolerate a CR LF line ending (only when the LF is not part of the data).
+    if bytes.get(hd.pos - 1) == Some(&b'\r')
+        && bytes.get(hd.pos) == Some(&b'\n')
+        && bytes.len() - hd.pos > need
+    {
         hd.pos += 1;
     }
     let payload = &bytes[hd.pos..];
-    let n = w * h * channels;
-    let need = 4 * n;
     if payload.len() < need {
         return Err(Error::format(
             path,
@@ -261,6 +264,14 @@ mod tests {
         assert_eq!(im.shape(), (1, 2, 1));
         assert_eq!(im.get(0, 0, 0), 20.0);
         assert_eq!(im.get(0, 1, 0), 10.0);
+        // CR LF after the scale, and a lone CR followed by data starting with byte 0x0A.
+        let mut b = b"Pf\r\n1 1\r\n-1\r\n".to_vec();
+        b.extend_from_slice(&3.0f32.to_le_bytes());
+        assert_eq!(decode_pfm(&b, Path::new("d.pfm")).unwrap().data(), &[3.0]);
+        let mut b = b"Pf\n1 1\n-1\r".to_vec();
+        b.extend_from_slice(&[0x0a, 0, 0, 0]);
+        let v = f32::from_le_bytes([0x0a, 0, 0, 0]);
+        assert_eq!(decode_pfm(&b, Path::new("e.pfm")).unwrap().data(), &[v]);
     }
 
     #[test]
