@@ -1,5 +1,31 @@
 //! File formats: Middlebury .flo, PFM, KITTI PNG flow, EXR, .npy, images; atomic writes.
+//!
+//! Every writer goes through [`atomic::write_atomic`]: a failed write leaves no file behind.
+//! Every reader returns an [`Error`](crate::Error) naming the path for malformed input.
 
 pub mod atomic;
+pub mod exr;
+pub mod flo;
+pub mod flow_file;
+pub mod image;
+pub mod kitti;
+pub mod npy;
+pub mod pfm;
 
 pub use atomic::{read_bytes, write_atomic, write_bytes_atomic};
+pub use exr::{read_exr, read_flow_exr, write_exr, write_flow_exr};
+pub use flo::{decode_flo, encode_flo, read_flo, write_flo};
+pub use flow_file::{read_flow, write_flow};
+pub use image::{BitDepth, read_image, read_image_pair, write_image};
+pub use kitti::{read_kitti_flow, write_kitti_flow};
+pub use npy::{read_npy, write_npy};
+pub use pfm::{read_pfm, read_pfm_flow, write_pfm};
+
+use std::path::Path;
+
+/// The lower-cased extension of `path` (empty when there is none).
+pub(crate) fn ext_lower(path: &Path) -> String {
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
+}

@@ -1,0 +1,392 @@
+//! Raster images (PNG, JPEG, PPM/PGM, TIFF via the `image` crate; EXR, NPY, PFM by extension)
+//! read into and written from planar [`Image`]s scaled to [0, 1].
+
+use std::io::Cursor;
+use std::path::Path;
+
+use image::{DynamicImage, ImageBuffer, ImageFormat, ImageReader};
+
+use super::atomic::{read_bytes, write_bytes_atomic};
+use super::{ext_lower, read_exr, read_npy, read_pfm, write_exr, write_npy, write_pfm};
+use crate::error::{Error, Result};
+use crate::types::Image;
+
+/// Sample depth of integer raster files written by [`write_image`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BitDepth {
+    /// 8 bits per sample (0..=255).
+    Eight,
+    /// 16 bits per sample (0..=65535).
+    Sixteen,
+}
+
+const WRITE_EXTS: &str = "png, ppm, pgm, pnm, jpg, jpeg, tif, tiff, exr, pfm, npy";
+
+/// Reads an image as planar `[C, H, W]`: grey (with or without alpha) gives 1 channel, colour
+/// gives 3 (alpha is dropped). 8-bit samples are divided by 255, 16-bit by 65535, float
+/// samples are kept. `.exr`, `.npy` and `.pfm` go to their own readers; other files are
+/// recognised by content (PNG, JPEG, PPM/PGM, TIFF), falling back to the extension.
+pub fn read_image(path: &Path) -> Result<Image> {
+    match ext_lower(path).as_str() {
+        "exr" => read_exr(path),
+        "npy" => read_npy(path),
+        "pfm" => read_pfm(path),
+        _ => dynamic_to_image(decode_dynamic(path)?, path),
+    }
+}
+
+/// Reads two images that must have the same width and height (e.g. the frames of a flow pair).
+pub fn read_image_pair(a: &Path, b: &Path) -> Result<(Image, Image)> {
+    let ia = read_image(a)?;
+    let ib = read_image(b)?;
+    if (ia.height(), ia.width()) != (ib.height(), ib.width()) {
+        return Err(Error::shape(
+            format!("image pair {} and {}", a.display(), b.display()),
+            format!(
+                "{}x{} (width x height of {})",
+                ia.width(),
+                ia.height(),
+                a.display()
+            ),
+            format!(
+                "{}x{} (width x height of {})",
+                ib.width(),
+                ib.height(),
+                b.display()
+            ),
+        ));
+    }
+    Ok((ia, ib))
+}
+
+/// Writes an image with the format chosen by extension: `png`, `tif`/`tiff` (8 or 16 bit,
+/// 1 channel grey, 3 RGB, 4 RGBA), `ppm`/`pgm`/`pnm` (binary P6/P5, 8 or 16 bit, no alpha),
+/// `jpg`/`jpeg` (8 bit, 1 or 3 channels), and `exr`/`pfm`/`npy` (float, `depth` ignored).
+/// Integer samples are `round(clamp(v, 0, 1) * max)`; non-finite samples are an error.
+pub fn write_image(path: &Path, image: &Image, depth: BitDepth) -> Result<()> {
+    let ext = ext_lower(path);
+    match ext.as_str() {
+        "exr" => return write_exr(path, image),
+        "pfm" => return write_pfm(path, image),
+        "npy" => return write_npy(path, image),
+        "png" | "ppm" | "pgm" | "pnm" | "jpg" | "jpeg" | "tif" | "tiff" => {}
+        _ => {
+            return Err(Error::invalid(
+                format!("image file name {}", path.display()),
+                format!("unsupported extension {ext:?}; supported: {WRITE_EXTS}"),
+            ));
+        }
+    }
+    let what = format!("image for {}", path.display());
+    let (c, h, w) = image.shape();
+    if !matches!(c, 1 | 3 | 4) {
+        return Err(Error::invalid(
+            what,
+            format!("raster files take 1 (grey), 3 (RGB) or 4 (RGBA) channels, image has {c}"),
+        ));
+    }
+    if h == 0 || w == 0 || h > u32::MAX as usize || w > u32::MAX as usize {
+        return Err(Error::invalid(
+            what,
+            format!("cannot write an image of size {w}x{h}"),
+        ));
+    }
+    image.check_finite(&what)?;
+    let bytes = match ext.as_str() {
+        "ppm" | "pgm" | "pnm" => encode_pnm(image, &ext, depth, &what)?,
+        "jpg" | "jpeg" => {
+            if depth == BitDepth::Sixteen || c == 4 {
+                return Err(Error::invalid(
+                    what,
+                    "JPEG stores only 8-bit grey or RGB (use PNG or TIFF for 16 bit or alpha)",
+                ));
+            }
+            let dynimg = to_dynamic(image, depth);
+            let mut buf = Vec::new();
+            let enc = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut buf, 95);
+            dynimg
+                .write_with_encoder(enc)
+                .map_err(|e| Error::invalid(what, format!("JPEG encoding failed: {e}")))?;
+            buf
+        }
+        _ => {
+            let format = if ext == "png" {
+                ImageFormat::Png
+            } else {
+                ImageFormat::Tiff
+            };
+            let mut cur = Cursor::new(Vec::new());
+            to_dynamic(image, depth)
+                .write_to(&mut cur, format)
+                .map_err(|e| Error::invalid(what, format!("{format:?} encoding failed: {e}")))?;
+            cur.into_inner()
+        }
+    };
+    write_bytes_atomic(path, &bytes)
+}
+
+/// Decodes a raster file through the `image` crate, naming the path in every error.
+pub(crate) fn decode_dynamic(path: &Path) -> Result<DynamicImage> {
+    let bytes = read_bytes(path)?;
+    let mut reader = ImageReader::new(Cursor::new(&bytes[..]))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    if reader.format().is_none()
+        && let Ok(f) = ImageFormat::from_path(path)
+    {
+        reader.set_format(f);
+    }
+    let Some(format) = reader.format() else {
+        return Err(Error::format(
+            path,
+            "unrecognised image format (readable: PNG, JPEG, PPM/PGM, TIFF, EXR, NPY, PFM)",
+        ));
+    };
+    reader
+        .decode()
+        .map_err(|e| Error::format(path, format!("cannot decode as {format:?}: {e}")))
+}
+
+/// Planar copy of `keep` of the `stride` interleaved channels, each sample mapped by `f`.
+fn planar<T: Copy>(
+    raw: &[T],
+    (w, h): (u32, u32),
+    stride: usize,
+    keep: usize,
+    f: impl Fn(T) -> f32,
+) -> Result<Image> {
+    let n = w as usize * h as usize;
+    let mut data = vec![0.0f32; keep * n];
+    for (i, px) in raw.chunks_exact(stride).take(n).enumerate() {
+        for c in 0..keep {
+            data[c * n + i] = f(px[c]);
+        }
+    }
+    Image::from_vec(keep, h as usize, w as usize, data)
+}
+
+/// Converts a decoded image to planar `[C, H, W]` in [0, 1] (floats as stored).
+pub(crate) fn dynamic_to_image(img: DynamicImage, path: &Path) -> Result<Image> {
+    let d = (img.width(), img.height());
+    let s8 = |v: u8| f32::from(v) / 255.0;
+    let s16 = |v: u16| f32::from(v) / 65535.0;
+    let id = |v: f32| v;
+    let out = match &img {
+        DynamicImage::ImageLuma8(b) => planar(b.as_raw(), d, 1, 1, s8),
+        DynamicImage::ImageLumaA8(b) => planar(b.as_raw(), d, 2, 1, s8),
+        DynamicImage::ImageRgb8(b) => planar(b.as_raw(), d, 3, 3, s8),
+        DynamicImage::ImageRgba8(b) => planar(b.as_raw(), d, 4, 3, s8),
+        DynamicImage::ImageLuma16(b) => planar(b.as_raw(), d, 1, 1, s16),
+        DynamicImage::ImageLumaA16(b) => planar(b.as_raw(), d, 2, 1, s16),
+        DynamicImage::ImageRgb16(b) => planar(b.as_raw(), d, 3, 3, s16),
+        DynamicImage::ImageRgba16(b) => planar(b.as_raw(), d, 4, 3, s16),
+        DynamicImage::ImageRgb32F(b) => planar(b.as_raw(), d, 3, 3, id),
+        DynamicImage::ImageRgba32F(b) => planar(b.as_raw(), d, 4, 3, id),
+        other => planar(other.to_rgb32f().as_raw(), d, 3, 3, id),
+    };
+    out.map_err(|e| Error::format(path, format!("decoded image has an inconsistent size: {e}")))
+}
+
+/// Interleaved quantised samples of all channels: `round(clamp(v, 0, 1) * max)`.
+fn quantise(image: &Image, max: f32) -> Vec<f32> {
+    let (c, h, w) = image.shape();
+    let mut out = Vec::with_capacity(c * h * w);
+    for y in 0..h {
+        for x in 0..w {
+            for ch in 0..c {
+                out.push((image.get(ch, y, x).clamp(0.0, 1.0) * max).round());
+            }
+        }
+    }
+    out
+}
+
+/// An 8- or 16-bit `DynamicImage` of 1, 3 or 4 channels (the caller checked the count).
+fn to_dynamic(image: &Image, depth: BitDepth) -> DynamicImage {
+    let (c, h, w) = image.shape();
+    let (w, h) = (w as u32, h as u32);
+    match depth {
+        BitDepth::Eight => {
+            let q: Vec<u8> = quantise(image, 255.0)
+                .into_iter()
+                .map(|v| v as u8)
+                .collect();
+            // from_raw only fails on a length mismatch, which quantise rules out.
+            let fallback = || DynamicImage::new_luma8(w, h);
+            match c {
+                1 => ImageBuffer::from_raw(w, h, q).map(DynamicImage::ImageLuma8),
+                3 => ImageBuffer::from_raw(w, h, q).map(DynamicImage::ImageRgb8),
+                _ => ImageBuffer::from_raw(w, h, q).map(DynamicImage::ImageRgba8),
+            }
+            .unwrap_or_else(fallback)
+        }
+        BitDepth::Sixteen => {
+            let q: Vec<u16> = quantise(image, 65535.0)
+                .into_iter()
+                .map(|v| v as u16)
+                .collect();
+            let fallback = || DynamicImage::new_luma16(w, h);
+            match c {
+                1 => ImageBuffer::from_raw(w, h, q).map(DynamicImage::ImageLuma16),
+                3 => ImageBuffer::from_raw(w, h, q).map(DynamicImage::ImageRgb16),
+                _ => ImageBuffer::from_raw(w, h, q).map(DynamicImage::ImageRgba16),
+            }
+            .unwrap_or_else(fallback)
+        }
+    }
+}
+
+/// Binary PGM (P5) or PPM (P6), 16-bit samples big-endian. `.ppm` expands grey to RGB;
+/// `.pgm` needs one channel; `.pnm` follows the channel count.
+fn encode_pnm(image: &Image, ext: &str, depth: BitDepth, what: &str) -> Result<Vec<u8>> {
+    let (c, h, w) = image.shape();
+    if c == 4 || (ext == "pgm" && c != 1) {
+        return Err(Error::invalid(
+            what,
+            format!("{ext} cannot store {c} channels (PGM: 1, PPM: 1 or 3, no alpha)"),
+        ));
+    }
+    let colour = ext == "ppm" || c == 3;
+    let max: u32 = if depth == BitDepth::Eight { 255 } else { 65535 };
+    let magic = if colour { "P6" } else { "P5" };
+    let mut out = format!("{magic}\n{w} {h}\n{max}\n").into_bytes();
+    let q = quantise(image, max as f32);
+    let reps = if colour && c == 1 { 3 } else { 1 };
+    for v in q {
+        for _ in 0..reps {
+            if max == 255 {
+                out.push(v as u8);
+            } else {
+                out.extend_from_slice(&(v as u16).to_be_bytes());
+            }
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(c: usize, h: usize, w: usize) -> Image {
+        let n = c * h * w;
+        let data = (0..n).map(|i| i as f32 / (n - 1) as f32).collect();
+        Image::from_vec(c, h, w, data).unwrap()
+    }
+
+    fn close(a: &Image, b: &Image, tol: f32) {
+        assert_eq!(a.shape(), b.shape());
+        for (x, y) in a.data().iter().zip(b.data()) {
+            assert!((x - y).abs() <= tol, "{x} vs {y}");
+        }
+    }
+
+    #[test]
+    fn png_tiff_pnm_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        for ext in ["png", "tif", "ppm", "pgm"] {
+            for (depth, tol) in [
+                (BitDepth::Eight, 0.5 / 255.0),
+                (BitDepth::Sixteen, 0.5 / 65535.0),
+            ] {
+                for c in [1, 3] {
+                    if ext == "pgm" && c == 3 {
+                        continue;
+                    }
+                    let im = ramp(c, 5, 7);
+                    let p = dir.path().join(format!("a{c}{depth:?}.{ext}"));
+                    write_image(&p, &im, depth).unwrap();
+                    let back = read_image(&p).unwrap();
+                    if ext == "ppm" && c == 1 {
+                        assert_eq!(back.channels(), 3);
+                        assert!(back.is_grey());
+                        close(&back.first_channel(), &im, tol * 1.01);
+                    } else {
+                        close(&back, &im, tol * 1.01);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn png_exact_quantisation_and_rgba() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("q.png");
+        let im = Image::from_vec(1, 1, 4, vec![-0.5, 0.5, 1.0, 2.0]).unwrap();
+        write_image(&p, &im, BitDepth::Eight).unwrap();
+        assert_eq!(
+            read_image(&p).unwrap().data(),
+            &[0.0, 128.0 / 255.0, 1.0, 1.0]
+        );
+        let rgba = ramp(4, 3, 3);
+        write_image(&p, &rgba, BitDepth::Sixteen).unwrap();
+        let back = read_image(&p).unwrap();
+        assert_eq!(back.channels(), 3, "alpha is dropped on read");
+        close(
+            &back,
+            &Image::from_vec(3, 3, 3, rgba.data()[..27].to_vec()).unwrap(),
+            1e-5,
+        );
+    }
+
+    #[test]
+    fn jpeg_is_close() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.jpg");
+        let im = Image::filled(3, 16, 16, 0.5);
+        write_image(&p, &im, BitDepth::Eight).unwrap();
+        close(&read_image(&p).unwrap(), &im, 3.0 / 255.0);
+        assert!(write_image(&p.with_extension("jpeg"), &im, BitDepth::Sixteen).is_err());
+    }
+
+    #[test]
+    fn write_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("e.png");
+        let e = write_image(&p, &ramp(2, 2, 2), BitDepth::Eight)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("has 2"), "{e}");
+        assert!(write_image(&p, &ramp(5, 2, 2), BitDepth::Eight).is_err());
+        let mut im = ramp(3, 2, 2);
+        im.set(1, 1, 0, f32::INFINITY);
+        let e = write_image(&p, &im, BitDepth::Eight)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("channel 1, row 1, column 0"), "{e}");
+        let e = write_image(&dir.path().join("x.bmp"), &ramp(1, 2, 2), BitDepth::Eight)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("png"), "{e}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn corrupt_file_is_format_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.png");
+        write_image(&p, &ramp(3, 8, 8), BitDepth::Eight).unwrap();
+        let mut bytes = std::fs::read(&p).unwrap();
+        bytes.truncate(bytes.len() / 2);
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_image(&p).unwrap_err();
+        assert!(matches!(e, Error::Format { .. }), "{e}");
+        assert!(e.to_string().contains("c.png"), "{e}");
+        std::fs::write(&p, b"hello, not an image").unwrap();
+        assert!(matches!(read_image(&p).unwrap_err(), Error::Format { .. }));
+        let missing = read_image(&dir.path().join("none.png")).unwrap_err();
+        assert!(matches!(missing, Error::Io { .. }));
+    }
+
+    #[test]
+    fn pair_size_mismatch_names_both() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
+        write_image(&a, &ramp(1, 4, 4), BitDepth::Eight).unwrap();
+        write_image(&b, &ramp(1, 4, 5), BitDepth::Eight).unwrap();
+        let e = read_image_pair(&a, &b).unwrap_err().to_string();
+        assert!(e.contains("a.png") && e.contains("b.png"), "{e}");
+        assert!(read_image_pair(&a, &a).is_ok());
+    }
+}
