@@ -199,7 +199,7 @@ mod tests {
     fn identity_stages_are_not_built() {
         let cam = Camera::new(&CameraConfig::ideal(), Psf::delta(3)).unwrap();
         assert_eq!(cam.stage_names(), vec!["quantize"]);
-        let full = Camera::new(&CameraConfig::default(), Psf::gaussian(3, 2.0, 9)).unwrap();
+        let full = Camera::new(&CameraConfig::default(), Psf::gaussian(3, 2.0, 9).unwrap()).unwrap();
         assert_eq!(
             full.stage_names(),
             vec!["brightness", "psf", "noise", "clamp", "gamma", "quantize"]
@@ -218,7 +218,7 @@ mod tests {
 
     #[test]
     fn extreme_images_give_finite_in_range_output() {
-        let cam = Camera::new(&CameraConfig::default(), Psf::gaussian(3, 30.0, 129)).unwrap();
+        let cam = Camera::new(&CameraConfig::default(), Psf::gaussian(3, 30.0, 129).unwrap()).unwrap();
         for value in [0.0f32, 1.0, 0.5] {
             let out = cam.apply(&Image::filled(3, 20, 24, value), 5).unwrap();
             assert!(out.data().iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
@@ -232,7 +232,7 @@ mod tests {
     fn grey_image_convolves_one_channel_with_the_mono_psf() {
         let cam = Camera::new(
             &CameraConfig { noise: NoiseConfig { a: 0.0, b: 0.0, ..Default::default() }, ..CameraConfig::default() },
-            Psf::gaussian(3, 1.5, 9),
+            Psf::gaussian(3, 1.5, 9).unwrap(),
         )
         .unwrap();
         let out = cam.apply(&gradient(1, 16, 16), 0).unwrap();
@@ -241,7 +241,7 @@ mod tests {
 
     #[test]
     fn direct_and_fft_pipelines_agree() {
-        let psf = Psf::gaussian(3, 3.0, 15);
+        let psf = Psf::gaussian(3, 3.0, 15).unwrap();
         let im = gradient(3, 40, 50);
         let mk = |m| {
             let cfg = CameraConfig { convolution: m, bit_depth: 16, ..CameraConfig::default() };

@@ -22,8 +22,8 @@ pub fn load(spec: &str) -> Result<(Psf, String)> {
         "default" => {
             let img = io::npy::decode_npy(DEFAULT_PSF_NPY, Path::new(DEFAULT_PSF_PATH))?;
             let psf = Psf::from_image(img, DEFAULT_PSF_PATH)?;
-            let (h, w) = psf.size();
-            Ok((psf, format!("default ({DEFAULT_PSF_PATH}, {}x{h}x{w})", 3)))
+            let ((h, w), c) = (psf.size(), psf.channels());
+            Ok((psf, format!("default ({DEFAULT_PSF_PATH}, {c}x{h}x{w})")))
         }
         "delta" => Ok((Psf::delta(3), "delta (no blur)".into())),
         path => {
@@ -36,8 +36,8 @@ pub fn load(spec: &str) -> Result<(Psf, String)> {
             }
             let img = io::read_image(p)?;
             let psf = Psf::from_image(img, path)?;
-            let (h, w) = psf.size();
-            Ok((psf, format!("file {path} ({}x{h}x{w})", psf.channels())))
+            let ((h, w), c) = (psf.size(), psf.channels());
+            Ok((psf, format!("file {path} ({c}x{h}x{w})")))
         }
     }
 }

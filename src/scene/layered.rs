@@ -31,7 +31,7 @@ pub struct Layer {
 }
 
 /// Serialisable record of a layer's geometry, for manifests.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LayerRecord {
     pub shape: Shape,
     pub poses: [Affine; 2],
