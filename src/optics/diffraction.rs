@@ -11,7 +11,13 @@
 //! image position, i.e. distortion, is modelled elsewhere).
 //!
 //! Cost: one N×N complex FFT per wavelength (15 for the default bands), two at a time in
-//! parallel with rayon, each using ≈ 100 MB at N = 2048.
+//! parallel with rayon, each using ≈ 100 MB at N = 2048. `compute_psf(&PsfParams::default())`
+//! takes ≈ 1.2–2 s on 2 cores (see the ignored test `default_psf_runtime`).
+//!
+//! Measured with the default grid (N = 2048, 532 nm, 83.8 % radius, Airy 1.04 µm): hyperbolic
+//! 1.07 µm on axis, 20 µm at 10°, 92 µm at 22.5°; quadratic 16.5 µm on axis (spherical
+//! aberration at f/1.6), 108 µm at 22.5°. A flat sensor at z = f behind a single f/1.6
+//! metasurface is sharp only near the axis; 40° needs grid ≥ 3328.
 
 use super::lens::Lens;
 use super::propagate::{Fine, Setup, fine_intensity};
@@ -61,7 +67,9 @@ impl Default for PsfParams {
 pub struct PsfResult {
     /// The RGB kernel `[3, K, K]`, centred on the design wavelength's centroid.
     pub psf: Psf,
-    /// Radius (µm) enclosing 83.8 % of the design-wavelength energy around its centroid.
+    /// Radius (µm) enclosing 83.8 % of the design-wavelength energy around its centroid. For a
+    /// perfect lens this is within ~10 % of the Airy radius (the encircled energy is so flat
+    /// near the first dark ring that sampling moves the 83.8 % point by a few percent).
     pub spot_radius_um: f64,
     /// Airy radius 1.22 λ0 f / D (µm) at the design wavelength.
     pub airy_radius_um: f64,
@@ -78,7 +86,7 @@ impl PsfParams {
             return Err(Error::invalid("PSF field_angle_deg", format!("{a} is not a finite angle with |θ| < 90°")));
         }
         let k = self.kernel_size;
-        if k % 2 == 0 || k > MAX_KERNEL {
+        if k.is_multiple_of(2) || k > MAX_KERNEL {
             return Err(Error::invalid("PSF kernel_size", format!("{k} is not odd in 1..={MAX_KERNEL}")));
         }
         let n = self.grid;
@@ -181,7 +189,7 @@ pub fn compute_psf(params: &PsfParams) -> Result<PsfResult> {
             }
         }
         let sum: f64 = acc.iter().sum();
-        if !(sum > 0.0) {
+        if sum.is_nan() || sum <= 0.0 {
             return Err(Error::invalid("PSF", format!("channel {ch} collected no light inside the {k}×{k} kernel")));
         }
         for (d, a) in data[ch * k * k..(ch + 1) * k * k].iter_mut().zip(&acc) {
@@ -331,6 +339,14 @@ mod tests {
         }
         assert!((r.spot_radius_um / r.airy_radius_um - 1.0).abs() < 0.15);
         for profile in [Profile::Hyperbolic, Profile::Quadratic] {
+            let p = PsfParams {
+                lens: Lens { profile, ..Lens::default() },
+                field_angle_deg: 22.5,
+                ..PsfParams::default()
+            };
+            let t = std::time::Instant::now();
+            let r = compute_psf(&p).unwrap();
+            println!("{profile:?} 22.5° compute_psf: {:.2} s, spot {:.2} µm", t.elapsed().as_secs_f64(), r.spot_radius_um);
             for angle in [0.0, 10.0, 22.5, 30.0, 40.0] {
                 let p = PsfParams {
                     lens: Lens { profile, ..Lens::default() },

@@ -16,9 +16,10 @@ use rayon::prelude::*;
 use rustfft::{FftPlanner, num_complex::Complex};
 use std::f64::consts::PI;
 
-/// Pupil window in units of the diameter when the kernel allows it: ≈ 4.9 output samples per
-/// Airy radius at the design wavelength.
-const PAD: f64 = 4.0;
+/// Pupil window in units of the diameter when the kernel allows it: ≈ 4.3 output samples per
+/// Airy radius at the design wavelength, and at N = 2048 a pupil pitch fine enough for both
+/// profiles at 22.5° over 420–680 nm.
+const PAD: f64 = 3.5;
 
 /// Grid geometry shared by all wavelengths of one PSF.
 #[derive(Clone, Debug)]

@@ -41,7 +41,7 @@ impl Psf {
         for ch in 0..c {
             let src = img.plane(ch);
             let sum: f64 = src.iter().map(|&v| v as f64).sum();
-            if !(sum > 0.0) || !sum.is_finite() {
+            if !sum.is_finite() || sum <= 0.0 {
                 return Err(Error::invalid(what, format!("channel {ch} sums to {sum}, not a positive number")));
             }
             let dst = out.plane_mut(ch);
@@ -68,7 +68,7 @@ impl Psf {
         if channels == 0 {
             return Err(Error::invalid("gaussian PSF channels", "must be at least 1"));
         }
-        if size % 2 == 0 {
+        if size.is_multiple_of(2) {
             return Err(Error::invalid("gaussian PSF size", format!("{size} is not odd")));
         }
         if !(sigma_px.is_finite() && sigma_px >= 0.0) {
