@@ -55,7 +55,10 @@ impl Lens {
             ("lens pixel_um", self.pixel_um),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(name, format!("{v} is not a positive finite number")));
+                return Err(Error::invalid(
+                    name,
+                    format!("{v} is not a positive finite number"),
+                ));
             }
         }
         let wl = self.design_wavelength_nm;
@@ -114,7 +117,10 @@ mod tests {
 
     #[test]
     fn serde_round_trip_lowercase_profile() {
-        let l = Lens { profile: Profile::Quadratic, ..Lens::default() };
+        let l = Lens {
+            profile: Profile::Quadratic,
+            ..Lens::default()
+        };
         let s = serde_json::to_string(&l).unwrap();
         assert!(s.contains("\"quadratic\""), "{s}");
         let back: Lens = serde_json::from_str(&s).unwrap();

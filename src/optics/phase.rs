@@ -60,12 +60,14 @@ mod tests {
     fn edge_gradient_gives_marginal_ray_angle() {
         let (r, h) = (0.5e-3, 1e-9);
         let k = 2.0 * PI / L;
-        let g = (phase(Profile::Hyperbolic, r + h, L, F) - phase(Profile::Hyperbolic, r - h, L, F)) / (2.0 * h);
+        let g = (phase(Profile::Hyperbolic, r + h, L, F) - phase(Profile::Hyperbolic, r - h, L, F))
+            / (2.0 * h);
         // The hyperbolic lens bends the marginal ray toward the focus: sin u = r/√(r²+f²).
         let sin_u = -g / k;
         assert!((g - phase_slope(Profile::Hyperbolic, r, L, F)).abs() < 1e-3 * g.abs());
         assert!((sin_u - r / (r * r + F * F).sqrt()).abs() < 1e-6, "{sin_u}");
-        let gq = (phase(Profile::Quadratic, r + h, L, F) - phase(Profile::Quadratic, r - h, L, F)) / (2.0 * h);
+        let gq = (phase(Profile::Quadratic, r + h, L, F) - phase(Profile::Quadratic, r - h, L, F))
+            / (2.0 * h);
         assert!((-gq / k - r / F).abs() < 1e-6);
     }
 

@@ -20,7 +20,10 @@ impl Psf {
     pub fn from_image(img: Image, what: &str) -> Result<Psf> {
         let (c, h, w) = img.shape();
         if c == 0 || h == 0 || w == 0 {
-            return Err(Error::invalid(what, format!("empty PSF of shape {c}x{h}x{w}")));
+            return Err(Error::invalid(
+                what,
+                format!("empty PSF of shape {c}x{h}x{w}"),
+            ));
         }
         img.check_finite(what)?;
         if let Some(i) = img.data().iter().position(|&v| v < 0.0) {
@@ -41,8 +44,11 @@ impl Psf {
         for ch in 0..c {
             let src = img.plane(ch);
             let sum: f64 = src.iter().map(|&v| v as f64).sum();
-            if !(sum > 0.0) || !sum.is_finite() {
-                return Err(Error::invalid(what, format!("channel {ch} sums to {sum}, not a positive number")));
+            if !sum.is_finite() || sum <= 0.0 {
+                return Err(Error::invalid(
+                    what,
+                    format!("channel {ch} sums to {sum}, not a positive number"),
+                ));
             }
             let dst = out.plane_mut(ch);
             for y in 0..h {
@@ -66,13 +72,22 @@ impl Psf {
     /// that size.
     pub fn gaussian(channels: usize, sigma_px: f64, size: usize) -> Result<Psf> {
         if channels == 0 {
-            return Err(Error::invalid("gaussian PSF channels", "must be at least 1"));
+            return Err(Error::invalid(
+                "gaussian PSF channels",
+                "must be at least 1",
+            ));
         }
-        if size % 2 == 0 {
-            return Err(Error::invalid("gaussian PSF size", format!("{size} is not odd")));
+        if size.is_multiple_of(2) {
+            return Err(Error::invalid(
+                "gaussian PSF size",
+                format!("{size} is not odd"),
+            ));
         }
         if !(sigma_px.is_finite() && sigma_px >= 0.0) {
-            return Err(Error::invalid("gaussian PSF sigma_px", format!("{sigma_px} is not a finite number ≥ 0")));
+            return Err(Error::invalid(
+                "gaussian PSF sigma_px",
+                format!("{sigma_px} is not a finite number ≥ 0"),
+            ));
         }
         let r = (size / 2) as f64;
         let mut plane = vec![0f32; size * size];
@@ -138,7 +153,11 @@ impl Psf {
     /// renormalised. `frac` is clamped to (0, 1]; NaN means 1. Never larger than the kernel
     /// (a non-square kernel is cropped per axis to at most its own size).
     pub fn crop_energy(&self, frac: f64) -> Psf {
-        let frac = if frac.is_nan() { 1.0 } else { frac.clamp(1e-12, 1.0) };
+        let frac = if frac.is_nan() {
+            1.0
+        } else {
+            frac.clamp(1e-12, 1.0)
+        };
         let (h, w) = self.size();
         let (cy, cx) = (h / 2, w / 2);
         let max_r = cy.max(cx);
@@ -149,7 +168,10 @@ impl Psf {
                 let p = self.channel(c);
                 let mut e = 0f64;
                 for y in cy - ry..=cy + ry {
-                    e += p[y * w + cx - rx..=y * w + cx + rx].iter().map(|&v| v as f64).sum::<f64>();
+                    e += p[y * w + cx - rx..=y * w + cx + rx]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .sum::<f64>();
                 }
                 // Channels sum to 1 in f64 only up to f32 rounding: allow a small slack.
                 if e < frac - 1e-6 {
@@ -191,13 +213,28 @@ mod tests {
     fn rejects_bad_kernels() {
         let mut im = Image::filled(2, 3, 3, 1.0);
         im.set(1, 2, 0, f32::NAN);
-        assert!(Psf::from_image(im, "k").unwrap_err().to_string().contains("non-finite"));
+        assert!(
+            Psf::from_image(im, "k")
+                .unwrap_err()
+                .to_string()
+                .contains("non-finite")
+        );
         let mut im = Image::filled(1, 3, 3, 1.0);
         im.set(0, 1, 1, -0.5);
-        assert!(Psf::from_image(im, "k").unwrap_err().to_string().contains("negative"));
+        assert!(
+            Psf::from_image(im, "k")
+                .unwrap_err()
+                .to_string()
+                .contains("negative")
+        );
         let mut im = Image::filled(2, 3, 3, 1.0);
         im.plane_mut(1).fill(0.0);
-        assert!(Psf::from_image(im, "k").unwrap_err().to_string().contains("channel 1"));
+        assert!(
+            Psf::from_image(im, "k")
+                .unwrap_err()
+                .to_string()
+                .contains("channel 1")
+        );
         assert!(Psf::from_image(Image::zeros(1, 0, 3), "k").is_err());
     }
 

@@ -99,7 +99,14 @@ mod tests {
             .map(|k| f(((k % n) as f64 - h) * d, ((k / n) as f64 - h) * d))
             .collect();
         let total = data.iter().sum();
-        Fine { n, dx_m: d, dy_m: d, data, total, peak_ratio: 1.0 }
+        Fine {
+            n,
+            dx_m: d,
+            dy_m: d,
+            data,
+            total,
+            peak_ratio: 1.0,
+        }
     }
 
     #[test]

@@ -25,10 +25,15 @@ pub fn default_bands() -> Vec<Band> {
     (0..14)
         .map(|i| {
             let wl = 420.0 + 20.0 * i as f64;
-            let w = |c: f64| (-(wl - c).powi(2) / (2.0 * DEFAULT_SIGMA_NM * DEFAULT_SIGMA_NM)).exp();
+            let w =
+                |c: f64| (-(wl - c).powi(2) / (2.0 * DEFAULT_SIGMA_NM * DEFAULT_SIGMA_NM)).exp();
             Band {
                 wavelength_nm: wl,
-                rgb: [w(DEFAULT_CENTRES_NM[0]), w(DEFAULT_CENTRES_NM[1]), w(DEFAULT_CENTRES_NM[2])],
+                rgb: [
+                    w(DEFAULT_CENTRES_NM[0]),
+                    w(DEFAULT_CENTRES_NM[1]),
+                    w(DEFAULT_CENTRES_NM[2]),
+                ],
             }
         })
         .collect()
@@ -54,6 +59,9 @@ mod tests {
         assert!(r == 600.0 || r == 620.0, "{r}"); // both 10 nm from 610
         assert_eq!(argmax(1), 540.0);
         assert_eq!(argmax(2), 460.0);
-        assert!(b.iter().all(|x| x.rgb.iter().all(|&w| (0.0..=1.0).contains(&w))));
+        assert!(
+            b.iter()
+                .all(|x| x.rgb.iter().all(|&w| (0.0..=1.0).contains(&w)))
+        );
     }
 }
