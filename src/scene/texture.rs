@@ -72,14 +72,14 @@ impl TextureRecipe {
         Self {
             seed: r.random(),
             palette,
-            base_period: scale * r.random_range(0.15..0.6),
-            octaves: r.random_range(4..7),
+            base_period: scale * r.random_range(0.08..0.5),
+            octaves: r.random_range(5..8),
             persistence: r.random_range(0.45..0.7),
             stripe_weight: if r.random::<f32>() < 0.35 { r.random_range(0.2..0.6) } else { 0.0 },
             stripe_period: r.random_range(4.0..24.0),
             stripe_angle: r.random_range(0.0..std::f32::consts::PI),
             cell_weight: if r.random::<f32>() < 0.35 { r.random_range(0.3..0.8) } else { 0.0 },
-            cell_period: scale * r.random_range(0.05..0.2),
+            cell_period: scale * r.random_range(0.04..0.15),
             contrast: r.random_range(0.6..1.0),
         }
     }
@@ -97,10 +97,25 @@ impl TextureRecipe {
         }
         let mut shade = 1.0;
         if self.cell_weight > 0.0 {
-            // Hard-edged cells: each lattice cell of a jittered grid gets its own brightness.
-            let (cx, cy) = ((x / self.cell_period).floor(), (y / self.cell_period).floor());
-            let v = lattice(self.seed ^ 0xCE11, cx as i64, cy as i64);
-            shade = 1.0 - self.cell_weight * v;
+            // Voronoi cells on a rotated jittered lattice: polygonal patches with hard edges,
+            // each with its own brightness (pebbles, tiles, foliage).
+            let (s, c) = self.stripe_angle.sin_cos();
+            let (u, v) = ((x * c - y * s) / self.cell_period, (x * s + y * c) / self.cell_period);
+            let (iu, iv) = (u.floor() as i64, v.floor() as i64);
+            let (mut best, mut id) = (f32::INFINITY, (0, 0));
+            for dj in -1..=1 {
+                for di in -1..=1 {
+                    let (ci, cj) = (iu + di, iv + dj);
+                    let px = ci as f32 + lattice(self.seed ^ 0xC0, ci, cj);
+                    let py = cj as f32 + lattice(self.seed ^ 0xC1, ci, cj);
+                    let d = (px - u).powi(2) + (py - v).powi(2);
+                    if d < best {
+                        best = d;
+                        id = (ci, cj);
+                    }
+                }
+            }
+            shade = 1.0 - self.cell_weight * lattice(self.seed ^ 0xCE11, id.0, id.1);
         }
         let pos = t * 3.0;
         let k = (pos.floor() as usize).min(2);
