@@ -1,0 +1,236 @@
+//! End-to-end tests of `pins generate` and `pins simulate`: determinism across thread counts and
+//! shards, resumption, what a scene needs, and bad input (clear error, non-zero exit, no output).
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn pins(args: &[&str], threads: Option<usize>) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_pins"));
+    cmd.args(args);
+    if let Some(t) = threads {
+        cmd.env("RAYON_NUM_THREADS", t.to_string());
+    }
+    cmd.output().expect("run pins")
+}
+
+fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "pins failed: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn failed(out: &Output) -> String {
+    assert!(!out.status.success(), "pins should fail: {}", String::from_utf8_lossy(&out.stdout));
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// All files of a folder with their bytes.
+fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .map(|e| (e.file_name().to_string_lossy().into_owned(), fs::read(e.path()).unwrap()))
+        .collect()
+}
+
+fn write_config(dir: &Path, name: &str, json: &str) -> PathBuf {
+    let p = dir.join(name);
+    fs::write(&p, json).unwrap();
+    p
+}
+
+const SMALL: &str = r#"{"count": 6, "seed": 42,
+  "scene": {"kind": "chairs", "width": 80, "height": 64, "sprites": [2, 4], "supersample": 2}}"#;
+
+#[test]
+fn output_is_bit_identical_across_threads_and_shards() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "small.json", SMALL);
+    let cfg = cfg.to_str().unwrap();
+    let (one, two, sharded) = (tmp.path().join("one"), tmp.path().join("two"), tmp.path().join("sharded"));
+    ok(&pins(&["generate", "--config", cfg, "--out", one.to_str().unwrap()], Some(1)));
+    ok(&pins(&["generate", "--config", cfg, "--out", two.to_str().unwrap()], Some(2)));
+    let first = ok(&pins(&["generate", "--config", cfg, "--out", sharded.to_str().unwrap(), "--shard", "1/3"], Some(2)));
+    assert!(first.contains("manifest.json is written when every shard"), "{first}");
+    assert!(!sharded.join("manifest.json").exists());
+    for k in ["0/3", "2/3"] {
+        ok(&pins(&["generate", "--config", cfg, "--out", sharded.to_str().unwrap(), "--shard", k], Some(1)));
+    }
+    let (a, b, c) = (snapshot(&one), snapshot(&two), snapshot(&sharded));
+    assert_eq!(a.len(), 6 * 4 + 2, "{:?}", a.keys().collect::<Vec<_>>());
+    assert_eq!(a, b, "thread count changed the bytes");
+    assert_eq!(a, c, "shard split changed the bytes");
+    // Another seed gives other images.
+    let other = tmp.path().join("other");
+    ok(&pins(&["generate", "--config", cfg, "--out", other.to_str().unwrap(), "--seed", "43"], None));
+    assert_ne!(a["00000_img1.png"], snapshot(&other)["00000_img1.png"]);
+}
+
+#[test]
+fn rerun_keeps_complete_samples_and_redoes_broken_ones() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "small.json", SMALL);
+    let out = tmp.path().join("ds");
+    let args = ["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    ok(&pins(&args, None));
+    let before = snapshot(&out);
+    // An interrupted run: one file missing, a stray temporary file.
+    fs::remove_file(out.join("00003_img2.png")).unwrap();
+    fs::write(out.join(".00004_img1.png.tmp-1-1"), b"partial").unwrap();
+    let msg = ok(&pins(&args, None));
+    assert!(msg.contains("1 samples generated, 5 kept"), "{msg}");
+    assert_eq!(snapshot(&out), before);
+    // A different config must not be mixed into the same folder.
+    let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap(), "--seed", "7"], None));
+    assert!(err.contains("another config"), "{err}");
+}
+
+#[test]
+fn only_what_the_scene_needs_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let still = write_config(
+        tmp.path(),
+        "still.json",
+        r#"{"count": 2, "scene": {"kind": "chairs", "width": 48, "height": 40, "channels": 1,
+            "max_translation": 0, "max_rotation_deg": 0, "scale_change": [1, 1],
+            "background_translation": 0, "background_rotation_deg": 0, "background_zoom": [1, 1]},
+            "camera": {"psf": "delta", "brightness": 1, "gamma": 1, "noise": {"a": 0, "b": 0}}}"#,
+    );
+    let out = tmp.path().join("still");
+    let msg = ok(&pins(&["generate", "--config", still.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    assert!(msg.contains("camera stages: quantize"), "{msg}");
+    let files = snapshot(&out);
+    assert!(!files.keys().any(|k| k.ends_with(".flo")), "a static scene wrote flow");
+    let img = pins::io::read_image(&out.join("00000_img1.png")).unwrap();
+    assert_eq!(img.channels(), 1, "a grey scene stays one channel");
+    let manifest = pins::dataset::Manifest::read(&out.join("manifest.json")).unwrap();
+    assert_eq!(manifest.stages, vec!["quantize"]);
+    assert!(manifest.samples.iter().all(|s| s.flow.is_none()));
+}
+
+#[test]
+fn test_patterns_carry_exact_flow() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "rocket.json", r#"{"count": 1, "scene": {"kind": "rocket", "step": "up_right"}}"#);
+    let out = tmp.path().join("rocket");
+    ok(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    let flow = pins::io::read_flo(&out.join("00000_flow.flo")).unwrap();
+    assert_eq!((flow.width(), flow.height()), (701, 701));
+    assert_eq!(flow.get(350, 350), (3.0, -3.0));
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if p.is_dir() {
+        Some(p)
+    } else {
+        eprintln!("skipping: ../shared/data not found");
+        None
+    }
+}
+
+#[test]
+fn real_dataset_passes_through_the_camera_keeping_its_flow() {
+    let Some(data) = shared_data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let src = data.join("flyingchairs");
+    let cfg = write_config(
+        tmp.path(),
+        "real.json",
+        &format!(r#"{{"count": 100, "scene": {{"kind": "dataset", "path": {:?}}}}}"#, src.to_str().unwrap()),
+    );
+    let out = tmp.path().join("real");
+    ok(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    let manifest = pins::dataset::Manifest::read(&out.join("manifest.json")).unwrap();
+    assert_eq!(manifest.count, 3, "three FlyingChairs examples");
+    let original = pins::io::read_flo(&src.join("0000001-gt.flo")).unwrap();
+    assert_eq!(pins::io::read_flo(&out.join("00000_flow.flo")).unwrap(), original);
+    let (clean, seen) = (
+        pins::io::read_image(&src.join("0000001-img0.ppm")).unwrap(),
+        pins::io::read_image(&out.join("00000_img1.png")).unwrap(),
+    );
+    assert_eq!(clean.shape(), seen.shape());
+    let mean = |i: &pins::Image| i.data().iter().map(|&v| v as f64).sum::<f64>() / i.data().len() as f64;
+    assert!(mean(&seen) < 0.8 * mean(&clean), "the camera dims (×0.8, γ = 1.7)");
+}
+
+#[test]
+fn bad_input_fails_clearly_without_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let out = t.join("never");
+    // Unknown config key, named in the message.
+    let cfg = write_config(t, "typo.json", r#"{"count": 2, "camera": {"gama": 1.2}}"#);
+    let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    assert!(err.contains("gama"), "{err}");
+    // Bad values.
+    for (json, word) in [
+        (r#"{"camera": {"gamma": -1}}"#, "gamma"),
+        (r#"{"camera": {"noise": {"a": -0.2}}}"#, "noise.a"),
+        (r#"{"scene": {"kind": "chairs", "width": 0}}"#, "size"),
+        (r#"{"camera": {"psf": "/no/such/psf.png"}}"#, "psf.png"),
+    ] {
+        let cfg = write_config(t, "bad.json", json);
+        let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+        assert!(err.to_lowercase().contains(word), "{json}: {err}");
+    }
+    let err = failed(&pins(&["generate", "--out", out.to_str().unwrap(), "--shard", "3/2"], None));
+    assert!(err.contains("--shard"), "{err}");
+    assert!(!out.exists(), "a failed run left output behind");
+
+    // simulate: missing image, corrupt image, bad PSF files, bad flags.
+    let img_out = t.join("sim.png");
+    let corrupt = t.join("corrupt.png");
+    fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    let good = t.join("good.png");
+    pins::io::write_image(&good, &pins::Image::filled(3, 16, 16, 0.5), pins::io::BitDepth::Eight).unwrap();
+    let mut nan = pins::Image::filled(1, 5, 5, 0.1);
+    nan.set(0, 2, 2, f32::NAN);
+    let nan_psf = t.join("nan_psf.npy");
+    pins::io::write_npy(&nan_psf, &nan).unwrap();
+    let mut neg = pins::Image::filled(1, 5, 5, 0.1);
+    neg.set(0, 1, 1, -0.5);
+    let neg_psf = t.join("neg_psf.npy");
+    pins::io::write_npy(&neg_psf, &neg).unwrap();
+    let zero_psf = t.join("zero_psf.npy");
+    pins::io::write_npy(&zero_psf, &pins::Image::zeros(1, 5, 5)).unwrap();
+    let o = img_out.to_str().unwrap();
+    let g = good.to_str().unwrap();
+    for (args, word) in [
+        (vec!["simulate", "--in", "/no/such.png", "--out", o], "such.png"),
+        (vec!["simulate", "--in", corrupt.to_str().unwrap(), "--out", o], "corrupt.png"),
+        (vec!["simulate", "--in", g, "--out", o, "--psf", nan_psf.to_str().unwrap()], "nan"),
+        (vec!["simulate", "--in", g, "--out", o, "--psf", neg_psf.to_str().unwrap()], "neg"),
+        (vec!["simulate", "--in", g, "--out", o, "--psf", zero_psf.to_str().unwrap()], "zero"),
+        (vec!["simulate", "--in", g, "--out", o, "--gamma", "0"], "gamma"),
+        (vec!["simulate", "--in", g, "--out", o, "--bit-depth", "12"], "bit_depth"),
+        (vec!["simulate", "--in", g, "--out", o, "--noise-b", "NaN"], "noise.b"),
+    ] {
+        let err = failed(&pins(&args, None));
+        assert!(err.to_lowercase().contains(word), "{args:?}: {err}");
+        assert!(!img_out.exists(), "{args:?} left an output file");
+    }
+    // And it works on good input.
+    ok(&pins(&["simulate", "--in", g, "--out", o, "--bit-depth", "16", "--seed", "3"], None));
+    assert!(img_out.exists());
+}
+
+#[test]
+fn mismatched_pair_in_a_dataset_is_an_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tmp.path().join("pairs");
+    fs::create_dir_all(&src).unwrap();
+    use pins::io::{BitDepth, write_image};
+    write_image(&src.join("00001_img1.png"), &pins::Image::filled(3, 16, 16, 0.5), BitDepth::Eight).unwrap();
+    write_image(&src.join("00001_img2.png"), &pins::Image::filled(3, 16, 20, 0.5), BitDepth::Eight).unwrap();
+    let cfg = write_config(
+        tmp.path(),
+        "ds.json",
+        &format!(r#"{{"scene": {{"kind": "dataset", "path": {:?}}}}}"#, src.to_str().unwrap()),
+    );
+    let out = tmp.path().join("out");
+    let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    assert!(err.contains("00001_img1.png") && err.contains("00001_img2.png"), "{err}");
+    assert!(!out.join("00000_img1.png").exists());
+}
