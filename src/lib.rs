@@ -12,6 +12,7 @@
 
 pub mod dataset;
 pub mod error;
+pub mod flow;
 pub mod imaging;
 pub mod io;
 pub mod optics;

@@ -26,6 +26,24 @@ enum Command {
     Simulate(SimulateArgs),
     /// Compute a metalens PSF by scalar diffraction and compare its spot with the Airy radius.
     Psf(PsfArgs),
+    /// Benchmark the camera model: throughput, and direct vs FFT convolution against f64.
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Repetitions per measurement (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    reps: usize,
+    /// Thread counts to measure the pipeline with.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    threads: Vec<usize>,
+    /// PSF sizes for the convolution table (odd).
+    #[arg(long, value_delimiter = ',', default_value = "9,17,33,65,129")]
+    psf_sizes: Vec<usize>,
+    /// Also write the report as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -130,6 +148,7 @@ fn main() {
         Command::Generate(a) => generate(a),
         Command::Simulate(a) => simulate(a),
         Command::Psf(a) => psf(a),
+        Command::Bench(a) => bench(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -278,6 +297,21 @@ fn psf(a: PsfArgs) -> Result<()> {
     );
     if let Some(s) = result.strehl_like {
         println!("Strehl-like peak ratio: {s:.3}");
+    }
+    Ok(())
+}
+
+fn bench(a: BenchArgs) -> Result<()> {
+    use pins::report::bench::{BenchOptions, run};
+    if a.threads.iter().any(|&t| t == 0) || a.reps == 0 {
+        bail!("--threads and --reps must be positive");
+    }
+    let opts = BenchOptions { reps: a.reps, threads: a.threads, psf_sizes: a.psf_sizes, ..BenchOptions::default() };
+    let report = run(&opts)?;
+    print!("{}", report.markdown());
+    if let Some(p) = a.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        io::write_bytes_atomic(&p, text.as_bytes())?;
     }
     Ok(())
 }

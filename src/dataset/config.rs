@@ -69,10 +69,21 @@ impl GeneratorConfig {
     /// Reads a JSON config; the error names the file and the offending key or value.
     pub fn from_file(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
+        let mut cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
             path: path.to_path_buf(),
             reason: e.to_string(),
         })?;
+        // Relative paths inside a config are relative to the config file, not to the caller's
+        // working directory, so experiment files work from anywhere.
+        let base = path.parent().unwrap_or(Path::new(""));
+        if let SceneSpec::Dataset { path: p, .. } = &mut cfg.scene
+            && p.is_relative()
+        {
+            *p = base.join(&*p);
+        }
+        if !matches!(cfg.camera.psf.as_str(), "default" | "delta") && Path::new(&cfg.camera.psf).is_relative() {
+            cfg.camera.psf = base.join(&cfg.camera.psf).to_string_lossy().into_owned();
+        }
         cfg.validate().map_err(|e| Error::Config { path: path.to_path_buf(), reason: e.to_string() })?;
         Ok(cfg)
     }

@@ -1,1 +1,3 @@
 //! Tables, plots and benchmarks: error against run time.
+
+pub mod bench;

@@ -1,0 +1,121 @@
+//! The Dual-Stage Multi-Scale Composite Encoder (DSMSCE, Note S10): a convolutional stem and
+//! residual stages down to 1/8 resolution, then a pyramid-pooling block (Eq. S13) and a
+//! dilated atrous spatial pyramid pooling block (DASPP, Eqs. S14–S15).
+
+use burn::nn::conv::Conv2d;
+use burn::prelude::*;
+use burn::tensor::activation::relu;
+use burn::tensor::module::{adaptive_avg_pool2d, interpolate};
+use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
+
+use super::blocks::{Norm, ResidualBlock, conv};
+use super::config::NormKind;
+
+/// Bilinear resize to `[h, w]` with PyTorch's `align_corners = false` (burn's default is true).
+pub fn resize(x: Tensor<4>, h: usize, w: usize) -> Tensor<4> {
+    interpolate(
+        x,
+        InterpolateOptions::new(InterpolateMode::Bilinear)
+            .with_align_corners(false)
+            .with_output_size([h, w]),
+    )
+}
+
+/// Pyramid pooling (Eq. S13): P0 = X, P_m = Upsample(AvgPool(X; m×m)) for m = 1, 2, 3,
+/// concatenated to 4C channels and fused back to C by a 3×3 convolution.
+#[derive(Module, Debug)]
+pub struct PyramidPooling {
+    fuse: Conv2d,
+    norm: Norm,
+}
+
+impl PyramidPooling {
+    pub fn new(channels: usize, norm: NormKind, device: &Device) -> Self {
+        Self { fuse: conv(4 * channels, channels, 3, 1, 1, device), norm: Norm::new(norm, channels, device) }
+    }
+
+    /// # Shapes
+    /// `[B, C, H, W]` → `[B, C, H, W]`
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let [_, _, h, w] = x.dims();
+        let mut branches = vec![x.clone()];
+        for m in 1..=3 {
+            branches.push(resize(adaptive_avg_pool2d(x.clone(), [m, m]), h, w));
+        }
+        relu(self.norm.forward(self.fuse.forward(Tensor::cat(branches, 1)))) // [B, 4C, H, W] → [B, C, H, W]
+    }
+}
+
+/// DASPP (Eqs. S14–S15): a 1×1 convolution, 3×3 atrous convolutions at each dilation rate and a
+/// global-average-pooling branch with a 1×1 convolution, concatenated and fused by a 1×1
+/// convolution.
+#[derive(Module, Debug)]
+pub struct Daspp {
+    point: Conv2d,
+    atrous: Vec<Conv2d>,
+    global: Conv2d,
+    fuse: Conv2d,
+    norm: Norm,
+}
+
+impl Daspp {
+    pub fn new(cin: usize, cout: usize, dilations: &[usize], norm: NormKind, device: &Device) -> Self {
+        Self {
+            point: conv(cin, cin, 1, 1, 1, device),
+            atrous: dilations.iter().map(|&d| conv(cin, cin, 3, 1, d, device)).collect(),
+            global: conv(cin, cin, 1, 1, 1, device),
+            fuse: conv(cin * (dilations.len() + 2), cout, 1, 1, 1, device),
+            norm: Norm::new(norm, cout, device),
+        }
+    }
+
+    /// # Shapes
+    /// `[B, C, H, W]` → `[B, Cout, H, W]`
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let [b, c, h, w] = x.dims();
+        let mut branches = vec![relu(self.point.forward(x.clone()))];
+        for a in &self.atrous {
+            branches.push(relu(a.forward(x.clone())));
+        }
+        let g = relu(self.global.forward(x.mean_dim(2).mean_dim(3))); // [B, C, 1, 1]
+        branches.push(g.expand([b, c, h, w]));
+        self.norm.forward(self.fuse.forward(Tensor::cat(branches, 1)))
+    }
+}
+
+/// One DSMSCE encoder: image `[B, 3, H, W]` → features `[B, out, H/8, W/8]`.
+#[derive(Module, Debug)]
+pub struct Dsmsce {
+    stem: Conv2d,
+    stem_norm: Norm,
+    stage1: Vec<ResidualBlock>,
+    stage2: Vec<ResidualBlock>,
+    stage3: Vec<ResidualBlock>,
+    pyramid: PyramidPooling,
+    daspp: Daspp,
+}
+
+impl Dsmsce {
+    pub fn new(dims: [usize; 3], out: usize, dilations: &[usize], norm: NormKind, device: &Device) -> Self {
+        let [d1, d2, d3] = dims;
+        Self {
+            stem: conv(3, d1, 7, 2, 1, device),
+            stem_norm: Norm::new(norm, d1, device),
+            stage1: vec![ResidualBlock::new(d1, d1, 1, norm, device), ResidualBlock::new(d1, d1, 1, norm, device)],
+            stage2: vec![ResidualBlock::new(d1, d2, 2, norm, device), ResidualBlock::new(d2, d2, 1, norm, device)],
+            stage3: vec![ResidualBlock::new(d2, d3, 2, norm, device), ResidualBlock::new(d3, d3, 1, norm, device)],
+            pyramid: PyramidPooling::new(d3, norm, device),
+            daspp: Daspp::new(d3, out, dilations, norm, device),
+        }
+    }
+
+    /// # Shapes
+    /// `[B, 3, H, W]` (H, W multiples of 8) → `[B, out, H/8, W/8]`
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let mut x = relu(self.stem_norm.forward(self.stem.forward(x))); // [B, d1, H/2, W/2]
+        for b in self.stage1.iter().chain(&self.stage2).chain(&self.stage3) {
+            x = b.forward(x); // → [B, d3, H/8, W/8]
+        }
+        self.daspp.forward(self.pyramid.forward(x))
+    }
+}

@@ -1,0 +1,14 @@
+//! The MMS network (Notes S9–S10) in Burn.
+
+pub mod blocks;
+pub mod config;
+pub mod corr;
+pub mod encoder;
+pub mod mms;
+pub mod padder;
+pub mod update;
+pub mod upsample;
+
+pub use config::{MmsConfig, NormKind};
+pub use mms::Mms;
+pub use padder::InputPadder;
