@@ -33,6 +33,7 @@ pub mod purpose {
     pub const NOISE_FRAME2: u64 = 3;
     pub const TEXTURE: u64 = 4;
     pub const NOISE: u64 = 5;
+    pub const TRAIN: u64 = 6;
 }
 
 #[cfg(test)]

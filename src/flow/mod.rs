@@ -1,6 +1,12 @@
-//! Optical flow: the MMS network (Notes S9–S11), its loss, metrics and visualisation.
+//! Optical flow: the MMS network (Notes S9–S11), training, export, inference, evaluation,
+//! metrics and visualisation.
 
+pub mod data;
+pub mod eval;
+pub mod infer;
 pub mod loss;
 pub mod metrics;
 pub mod model;
+pub mod train;
 pub mod viz;
+pub mod weights;

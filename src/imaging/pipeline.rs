@@ -25,6 +25,19 @@ pub enum Stage {
 }
 
 impl Stage {
+    /// Applies this stage in place; `seed` keys the noise.
+    pub fn apply(&self, img: &mut Image, seed: u64) -> Result<()> {
+        match self {
+            Stage::Brightness(k) => tone::scale(img, *k),
+            Stage::Blur(blur) => *img = blur.apply(img)?,
+            Stage::Noise(noise) => noise.apply(img, seed),
+            Stage::Clamp => tone::clamp01(img),
+            Stage::Gamma(g) => tone::gamma(img, *g),
+            Stage::Quantize(bits) => tone::quantize(img, *bits),
+        }
+        Ok(())
+    }
+
     /// The name recorded in manifests.
     pub fn name(&self) -> &'static str {
         match self {
@@ -166,14 +179,7 @@ impl Camera {
         scene.check_finite("input image")?;
         let mut img = scene.clone();
         for stage in &self.stages {
-            match stage {
-                Stage::Brightness(k) => tone::scale(&mut img, *k),
-                Stage::Blur(blur) => img = blur.apply(&img)?,
-                Stage::Noise(noise) => noise.apply(&mut img, seed),
-                Stage::Clamp => tone::clamp01(&mut img),
-                Stage::Gamma(g) => tone::gamma(&mut img, *g),
-                Stage::Quantize(bits) => tone::quantize(&mut img, *bits),
-            }
+            stage.apply(&mut img, seed)?;
         }
         Ok(img)
     }

@@ -4,6 +4,7 @@
 //! Every reader returns an [`Error`](crate::Error) naming the path for malformed input.
 
 pub mod atomic;
+pub mod chart;
 pub mod exr;
 pub mod flo;
 pub mod flow_file;

@@ -23,6 +23,8 @@ pub struct PipelineRow {
     pub ms_per_frame: f64,
     /// Pairs (two frames) per second.
     pub pairs_per_s: f64,
+    /// Median milliseconds of each stage, in pipeline order.
+    pub stages_ms: Vec<(String, f64)>,
 }
 
 /// One convolution measurement.
@@ -118,7 +120,20 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport> {
                 .build()
                 .map_err(|e| Error::invalid("threads", e.to_string()))?;
             let ms = pool.install(|| median_ms(opts.reps, || camera.apply(&frame, 1)));
-            pipeline.push(PipelineRow { height: h, width: w, threads, ms_per_frame: ms, pairs_per_s: 1e3 / (2.0 * ms) });
+            let mut stages_ms = Vec::new();
+            let mut img = frame.clone();
+            for stage in camera.stages() {
+                let input = img.clone();
+                let t = pool.install(|| {
+                    median_ms(opts.reps, || {
+                        let mut x = input.clone();
+                        stage.apply(&mut x, 1)
+                    })
+                });
+                stage.apply(&mut img, 1)?;
+                stages_ms.push((stage.name().to_string(), t));
+            }
+            pipeline.push(PipelineRow { height: h, width: w, threads, ms_per_frame: ms, pairs_per_s: 1e3 / (2.0 * ms), stages_ms });
         }
     }
     let one = rayon::ThreadPoolBuilder::new()
@@ -161,9 +176,13 @@ fn convolution_table(opts: &BenchOptions, psf: &Psf) -> Result<Vec<ConvRow>> {
 impl BenchReport {
     /// Markdown tables.
     pub fn markdown(&self) -> String {
-        let mut s = String::from("| frame (H×W×3) | threads | ms per frame | pairs/s |\n|---|---|---|---|\n");
+        let mut s = String::from("| frame (H×W×3) | threads | ms per frame | pairs/s | stages (ms, each including a copy of the frame) |\n|---|---|---|---|---|\n");
         for r in &self.pipeline {
-            s += &format!("| {}×{} | {} | {:.1} | {:.1} |\n", r.height, r.width, r.threads, r.ms_per_frame, r.pairs_per_s);
+            let stages: Vec<String> = r.stages_ms.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
+            s += &format!(
+                "| {}×{} | {} | {:.1} | {:.1} | {} |\n",
+                r.height, r.width, r.threads, r.ms_per_frame, r.pairs_per_s, stages.join(", ")
+            );
         }
         s += &format!(
             "\nConvolution of one {}×{} plane on one thread (max abs error against a float64 reference, [0, 1] data):\n\n",

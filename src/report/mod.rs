@@ -1,3 +1,4 @@
 //! Tables, plots and benchmarks: error against run time.
 
 pub mod bench;
+pub mod eval_plot;

@@ -1,0 +1,69 @@
+//! Inference: load exported weights (no training stack) and estimate the flow between two
+//! images of any size — padded to a multiple of 8 by edge replication and cropped back.
+
+use std::path::Path;
+
+use burn::prelude::*;
+
+use super::data::image_tensor;
+use super::model::{InputPadder, Mms, MmsConfig};
+use super::weights;
+use crate::error::{Error, Result};
+use crate::types::{Flow, Image};
+
+/// The shipped `mms-small` weights, trained by `pins train` on `pins generate` data (see the
+/// README for the commands), used when no `--weights` file is given.
+pub const DEFAULT_WEIGHTS: &[u8] = include_bytes!("../../datasets/weights/mms-small.safetensors");
+
+/// A loaded network ready to run.
+pub struct Predictor {
+    pub model: Mms,
+    pub config: MmsConfig,
+    pub device: Device,
+}
+
+impl Predictor {
+    /// Loads a weights file (`default` for the shipped one).
+    pub fn load(path: &str) -> Result<Self> {
+        let device = Device::flex();
+        let (model, config) = if path == "default" {
+            weights::from_bytes(DEFAULT_WEIGHTS, Path::new("datasets/weights/mms-small.safetensors"), &device)?
+        } else {
+            weights::load(Path::new(path), &device)?
+        };
+        Ok(Self { model, config, device })
+    }
+
+    /// The flow from `img1` to `img2` after `iters` refinements.
+    pub fn predict(&self, img1: &Image, img2: &Image, iters: usize) -> Result<Flow> {
+        predict_flow(&self.model, &self.config, img1, img2, iters, &self.device)
+    }
+}
+
+/// Runs `model` on one pair. Images must have the same size; grey images are repeated to RGB.
+pub fn predict_flow(model: &Mms, config: &MmsConfig, img1: &Image, img2: &Image, iters: usize, device: &Device) -> Result<Flow> {
+    if (img1.height(), img1.width()) != (img2.height(), img2.width()) {
+        return Err(Error::shape(
+            "second image",
+            format!("{}x{} (the first image)", img1.width(), img1.height()),
+            format!("{}x{}", img2.width(), img2.height()),
+        ));
+    }
+    if iters == 0 || iters > 256 {
+        return Err(Error::invalid("--iters", format!("must be 1..=256, got {iters}")));
+    }
+    img1.check_finite("first image")?;
+    img2.check_finite("second image")?;
+    let (h, w) = (img1.height(), img1.width());
+    let padder = InputPadder::new(h, w, config.min_side());
+    let a = padder.pad(image_tensor(img1, device));
+    let b = padder.pad(image_tensor(img2, device));
+    let pred = model.forward(a, b, iters, false).pop().ok_or_else(|| Error::invalid("model", "no prediction"))?;
+    let flow = padder.unpad(pred); // [1, 2, H, W]
+    let data: Vec<f32> = flow.into_data().try_to_vec::<f32>().map_err(|e| Error::invalid("model output", format!("{e:?}")))?;
+    let out = Flow::from_vec(h, w, data)?;
+    if out.data().iter().any(|v| !v.is_finite()) {
+        return Err(Error::invalid("model output", "the network produced non-finite flow"));
+    }
+    Ok(out)
+}

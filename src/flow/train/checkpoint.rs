@@ -1,0 +1,60 @@
+//! Checkpoints: model and optimiser state written under step-numbered names, then `state.json`
+//! (written last, atomically) points at them, so an interrupted write never replaces the last
+//! good checkpoint.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::config::TrainConfig;
+use crate::error::{Error, Result};
+use crate::io;
+
+/// What `state.json` records.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CheckpointState {
+    /// Steps completed.
+    pub step: usize,
+    pub model_file: String,
+    pub optimizer_file: String,
+    pub config: TrainConfig,
+    pub data: PathBuf,
+    pub best_val_epe: Option<f64>,
+    /// Wall-clock seconds of training so far, over all sessions.
+    pub train_seconds: f64,
+}
+
+/// The checkpoint folder of a run.
+pub fn dir(run: &Path) -> PathBuf {
+    run.join("checkpoint")
+}
+
+/// Writes a checkpoint: `model-STEP.bpk`, `optim-STEP.bin`, then `state.json`; removes the
+/// files of older steps afterwards.
+pub fn write(run: &Path, state: &CheckpointState, model: &[u8], optimizer: &[u8]) -> Result<()> {
+    let d = dir(run);
+    io::write_bytes_atomic(&d.join(&state.model_file), model)?;
+    io::write_bytes_atomic(&d.join(&state.optimizer_file), optimizer)?;
+    let json = serde_json::to_string_pretty(state).map_err(|e| Error::invalid("checkpoint", e.to_string()))?;
+    io::write_bytes_atomic(&d.join("state.json"), json.as_bytes())?;
+    for entry in std::fs::read_dir(&d).map_err(|e| Error::io(&d, e))?.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if (name.starts_with("model-") || name.starts_with("optim-")) && name != state.model_file && name != state.optimizer_file {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+    Ok(())
+}
+
+/// Reads the last checkpoint of `run`, if any.
+pub fn read(run: &Path) -> Result<Option<(CheckpointState, Vec<u8>, Vec<u8>)>> {
+    let p = dir(run).join("state.json");
+    if !p.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&p).map_err(|e| Error::io(&p, e))?;
+    let state: CheckpointState = serde_json::from_str(&text).map_err(|e| Error::format(&p, e.to_string()))?;
+    let model = io::read_bytes(&dir(run).join(&state.model_file))?;
+    let optim = io::read_bytes(&dir(run).join(&state.optimizer_file))?;
+    Ok(Some((state, model, optim)))
+}

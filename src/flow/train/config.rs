@@ -1,0 +1,109 @@
+//! Training configuration (Note S11 and RAFT's recipe, sized for a CPU): every default here.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::flow::data::AugmentConfig;
+use crate::flow::model::MmsConfig;
+
+/// How a run trains. Unknown keys are rejected.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    /// `mms-small` or `mms`.
+    pub model: String,
+    /// Total optimiser steps (the one-cycle schedule spans them).
+    pub steps: usize,
+    pub batch_size: usize,
+    /// Random crop `[H, W]`, multiples of 8.
+    pub crop: [usize; 2],
+    /// Refinement iterations while training.
+    pub iters: usize,
+    /// Peak learning rate of the one-cycle schedule.
+    pub lr: f64,
+    /// Fraction of the steps spent warming up from lr/25.
+    pub pct_start: f64,
+    pub weight_decay: f64,
+    pub epsilon: f64,
+    /// Global gradient-norm clip (over all parameters, as torch's clip_grad_norm_).
+    pub clip: f64,
+    /// ρ of Eq. S16.
+    pub rho: f32,
+    /// Share of the dataset held out for validation.
+    pub val_fraction: f64,
+    /// Validate every this many steps (and at the end).
+    pub val_every: usize,
+    /// At most this many validation pairs per evaluation.
+    pub val_max_pairs: usize,
+    /// Iterations used when validating.
+    pub val_iters: usize,
+    /// Write a checkpoint every this many steps (and at the end).
+    pub checkpoint_every: usize,
+    /// Seed of the data order and augmentation; step s draws from (seed, s) alone.
+    pub seed: u64,
+    pub augment: AugmentConfig,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            model: "mms-small".into(),
+            steps: 2000,
+            batch_size: 4,
+            crop: [128, 160],
+            iters: 8,
+            lr: 4e-4,
+            pct_start: 0.05,
+            weight_decay: 1e-4,
+            epsilon: 1e-8,
+            clip: 1.0,
+            rho: 0.8,
+            val_fraction: 0.1,
+            val_every: 250,
+            val_max_pairs: 16,
+            val_iters: 12,
+            checkpoint_every: 100,
+            seed: 0,
+            augment: AugmentConfig::default(),
+        }
+    }
+}
+
+impl TrainConfig {
+    /// Reads a JSON config, naming the file on error.
+    pub fn from_file(path: &std::path::Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config { path: path.into(), reason: e.to_string() })?;
+        cfg.validate().map_err(|e| Error::Config { path: path.into(), reason: e.to_string() })?;
+        Ok(cfg)
+    }
+
+    /// The model's config.
+    pub fn model_config(&self) -> Result<MmsConfig> {
+        MmsConfig::named(&self.model)
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        self.model_config()?;
+        let checks: [(&str, bool); 12] = [
+            ("steps", self.steps > 0),
+            ("batch_size", (1..=256).contains(&self.batch_size)),
+            ("crop", self.crop.iter().all(|&c| c >= 64 && c % 8 == 0)),
+            ("iters", (1..=64).contains(&self.iters)),
+            ("lr", self.lr.is_finite() && self.lr > 0.0 && self.lr <= 1.0),
+            ("pct_start", (0.0..1.0).contains(&self.pct_start)),
+            ("weight_decay", self.weight_decay.is_finite() && self.weight_decay >= 0.0),
+            ("clip", self.clip.is_finite() && self.clip > 0.0),
+            ("rho", self.rho > 0.0 && self.rho <= 1.0),
+            ("val_fraction", self.val_fraction > 0.0 && self.val_fraction < 1.0),
+            ("val_every/checkpoint_every", self.val_every > 0 && self.checkpoint_every > 0),
+            ("val_iters", (1..=64).contains(&self.val_iters)),
+        ];
+        for (name, ok) in checks {
+            if !ok {
+                return Err(Error::invalid(format!("train.{name}"), "out of range (crop sides must be multiples of 8, at least 64)"));
+            }
+        }
+        Ok(())
+    }
+}

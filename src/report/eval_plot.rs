@@ -1,0 +1,53 @@
+//! The plot of flow error against run time: MMS at each iteration count, the zero-flow
+//! baseline, and peer methods (OpenCV DIS, Farneback) measured on the same data.
+
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+use crate::flow::eval::EvalReport;
+use crate::io::chart::{Chart, Series};
+
+/// One peer method's result, as written by `scripts/flow_baselines.py`.
+#[derive(Clone, Debug, Deserialize)]
+pub struct PeerRow {
+    pub name: String,
+    pub epe: f64,
+    pub ms_per_pair: f64,
+}
+
+/// Reads `{"methods": [{"name", "epe", "ms_per_pair", ...}]}`.
+pub fn read_peers(path: &Path) -> Result<Vec<PeerRow>> {
+    #[derive(Deserialize)]
+    struct File {
+        methods: Vec<PeerRow>,
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let f: File = serde_json::from_str(&text).map_err(|e| Error::format(path, e.to_string()))?;
+    Ok(f.methods)
+}
+
+/// Writes the EPE-against-time PNG.
+pub fn write(report: &EvalReport, peers: Option<&Path>, png: &Path) -> Result<()> {
+    let mut series = vec![Series {
+        name: format!("{} (iterations {})", report.model, report.rows.iter().map(|r| r.iters.to_string()).collect::<Vec<_>>().join(", ")),
+        points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(),
+        markers: false,
+    }];
+    series.push(Series { name: format!("{} points", report.model), points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(), markers: true });
+    if let Some(p) = peers {
+        for peer in read_peers(p)? {
+            series.push(Series { name: peer.name.clone(), points: vec![(peer.ms_per_pair, peer.epe)], markers: true });
+        }
+    }
+    series.push(Series { name: "zero flow".into(), points: vec![(0.0, report.zero_flow.epe)], markers: true });
+    Chart {
+        title: format!("EPE against run time, {} pairs", report.pairs),
+        x_label: "ms per pair".into(),
+        y_label: "EPE (px)".into(),
+        series,
+        log_y: true,
+    }
+    .write_png(png, 800, 500)
+}
