@@ -36,6 +36,26 @@ enum Command {
     Infer(InferArgs),
     /// Evaluate weights on a dataset: EPE, AE, 1/3/5 px and ms per pair for several iteration counts.
     Eval(EvalArgs),
+    /// Time MMS inference or one training step (random weights) and print a JSON line.
+    BenchFlow(BenchFlowArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchFlowArgs {
+    /// mms or mms-small.
+    #[arg(long, default_value = "mms-small")]
+    model: String,
+    /// infer (batch 1) or train (batch 2, one AdamW step).
+    #[arg(long, default_value = "infer")]
+    mode: String,
+    #[arg(long, default_value_t = 368)]
+    height: usize,
+    #[arg(long, default_value_t = 496)]
+    width: usize,
+    #[arg(long, default_value_t = 12)]
+    iters: usize,
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
 }
 
 #[derive(clap::Args)]
@@ -237,6 +257,7 @@ fn main() {
         Command::Export(a) => export(a),
         Command::Infer(a) => infer(a),
         Command::Eval(a) => eval(a),
+        Command::BenchFlow(a) => bench_flow(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -495,5 +516,14 @@ fn eval(a: EvalArgs) -> Result<()> {
         pins::report::eval_plot::write(&report, a.peers.as_deref(), &png)?;
         println!("{} and {}", out.display(), png.display());
     }
+    Ok(())
+}
+
+fn bench_flow(a: BenchFlowArgs) -> Result<()> {
+    if a.reps == 0 || a.iters == 0 {
+        bail!("--reps and --iters must be positive");
+    }
+    let row = pins::report::flow_bench::run(&a.model, &a.mode, a.height, a.width, a.iters, a.reps)?;
+    println!("{}", serde_json::to_string(&row)?);
     Ok(())
 }

@@ -7,6 +7,7 @@ pub mod noise;
 pub mod pipeline;
 pub mod psf_source;
 pub mod tone;
+pub mod tone_lut;
 
 pub use config::CameraConfig;
 pub use convolve::ConvMethod;

@@ -1,6 +1,7 @@
 //! Sensor noise (Note S4): the heteroscedastic Gaussian of Eq. S3, z ~ N(y, a·y + b) in 8-bit
 //! digital numbers, or the exact Poisson shot noise plus Gaussian read noise of Eqs. S1–S2.
 
+use rand::SeedableRng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -74,7 +75,9 @@ impl NoiseConfig {
             .enumerate()
             .for_each(|(row_index, row)| {
                 let (ch, y) = (row_index / h, row_index % h);
-                let mut rng = rng::stream(seed, &[rng::purpose::NOISE, ch as u64, y as u64]);
+                // Xoshiro256++: several times faster than ChaCha for the millions of draws a
+                // frame needs, and statistically sound for simulation.
+                let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(rng::derive(seed, &[rng::purpose::NOISE, ch as u64, y as u64]));
                 for v in row.iter_mut() {
                     // The signal cannot be negative; a clamp here keeps the variance valid.
                     let dn = v.max(0.0) * DN_SCALE;

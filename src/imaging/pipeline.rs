@@ -135,6 +135,8 @@ impl Blur {
 /// The camera model: an ordered list of stages that are not the identity.
 pub struct Camera {
     stages: Vec<Stage>,
+    /// γ followed by 8-bit quantisation runs as one exact table lookup (same output).
+    fused_tone: Option<super::tone_lut::GammaQuantizer>,
 }
 
 impl Camera {
@@ -161,7 +163,8 @@ impl Camera {
             stages.push(Stage::Gamma(config.gamma));
         }
         stages.push(Stage::Quantize(config.bit_depth));
-        Ok(Self { stages })
+        let fused_tone = (config.bit_depth == 8).then(|| super::tone_lut::GammaQuantizer::new(config.gamma));
+        Ok(Self { stages, fused_tone })
     }
 
     /// Names of the stages that run, in order.
@@ -178,8 +181,26 @@ impl Camera {
     pub fn apply(&self, scene: &Image, seed: u64) -> Result<Image> {
         scene.check_finite("input image")?;
         let mut img = scene.clone();
-        for stage in &self.stages {
-            stage.apply(&mut img, seed)?;
+        let mut i = 0;
+        while i < self.stages.len() {
+            // The tail clamp → gamma → quantise(8) is one lookup when the table exists.
+            let tail = &self.stages[i..];
+            let tone_tail = match tail {
+                [Stage::Clamp, Stage::Gamma(_), Stage::Quantize(8)] | [Stage::Gamma(_), Stage::Quantize(8)] => true,
+                [Stage::Clamp, Stage::Quantize(8)] | [Stage::Quantize(8)] => true,
+                _ => false,
+            };
+            if tone_tail && let Some(q) = &self.fused_tone {
+                let has_gamma = tail.iter().any(|s| matches!(s, Stage::Gamma(_)));
+                if has_gamma {
+                    q.apply(&mut img);
+                } else {
+                    tone::quantize(&mut img, 8);
+                }
+                break;
+            }
+            self.stages[i].apply(&mut img, seed)?;
+            i += 1;
         }
         Ok(img)
     }

@@ -2,3 +2,4 @@
 
 pub mod bench;
 pub mod eval_plot;
+pub mod flow_bench;

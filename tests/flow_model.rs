@@ -1,0 +1,155 @@
+//! The MMS network end to end on the CPU backend: shapes, padding to any size, stability on
+//! extreme inputs (finite outputs and gradients), learning (overfitting one batch), and the
+//! weights file round trip with its errors.
+
+use burn::optim::{AdamWConfig, GradientsParams};
+use burn::prelude::*;
+use burn::tensor::Distribution;
+
+use pins::flow::loss::sequence_loss;
+use pins::flow::model::{Mms, MmsConfig, NormKind};
+use pins::flow::{infer::predict_flow, weights};
+use pins::{Flow, Image};
+
+/// A tiny network so that tests run in seconds.
+fn tiny() -> MmsConfig {
+    MmsConfig {
+        name: "tiny".into(),
+        encoder_dims: [8, 16, 24],
+        feature_dim: 32,
+        hidden_dim: 16,
+        context_dim: 16,
+        motion_dims: [16, 8, 16],
+        head_dim: 16,
+        dilations: vec![2, 4],
+        corr_levels: 3,
+        corr_radius: 3,
+        iters: 4,
+        feature_norm: NormKind::Instance,
+        context_norm: NormKind::Group,
+    }
+}
+
+fn textured(h: usize, w: usize, shift: (f32, f32)) -> Image {
+    let mut img = Image::zeros(3, h, w);
+    for c in 0..3 {
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f32 - shift.0, y as f32 - shift.1);
+                let v = 0.5 + 0.25 * ((xf * 0.37 + c as f32).sin() + (yf * 0.23 + xf * 0.11).cos());
+                img.set(c, y, x, v.clamp(0.0, 1.0));
+            }
+        }
+    }
+    img
+}
+
+#[test]
+fn forward_shapes_and_any_input_size() {
+    let dev = Device::flex();
+    let cfg = tiny();
+    let net = Mms::new(&cfg, &dev);
+    let a = Tensor::<4>::random([2, 3, 64, 64], Distribution::Default, &dev);
+    let preds = net.forward(a.clone(), a, 2, true);
+    assert_eq!(preds.len(), 2);
+    assert_eq!(preds[1].dims(), [2, 2, 64, 64]);
+    // 37×50 is padded to the pyramid minimum and cropped back.
+    let flow = predict_flow(&net, &cfg, &textured(37, 50, (0.0, 0.0)), &textured(37, 50, (1.0, 0.0)), 3, &dev).unwrap();
+    assert_eq!((flow.height(), flow.width()), (37, 50));
+    assert!(predict_flow(&net, &cfg, &textured(37, 50, (0.0, 0.0)), &textured(40, 50, (0.0, 0.0)), 3, &dev).is_err());
+}
+
+#[test]
+fn extreme_inputs_give_finite_flow_and_gradients() {
+    let dev = Device::flex().autodiff();
+    let cfg = tiny();
+    let net = Mms::new(&cfg, &dev);
+    let gt_huge = Tensor::<4>::ones([1, 2, 64, 64], &dev).mul_scalar(300.0); // far beyond r·2^levels
+    for (v1, v2) in [(0.0f32, 0.0f32), (1.0, 1.0), (0.5, 0.5), (0.0, 1.0)] {
+        let a = Tensor::<4>::ones([1, 3, 64, 64], &dev).mul_scalar(v1);
+        let b = Tensor::<4>::ones([1, 3, 64, 64], &dev).mul_scalar(v2);
+        let preds = net.forward(a, b, 3, true);
+        let valid = Tensor::<4>::ones([1, 1, 64, 64], &dev);
+        let loss = sequence_loss(&preds, gt_huge.clone(), valid, 0.8);
+        let l: f32 = loss.clone().into_scalar();
+        assert!(l.is_finite(), "loss {l} for frames {v1}/{v2}");
+        let mut grads = GradientsParams::from_grads(loss.backward(), &net);
+        let norm = pins::flow::train::clip::clip_global_norm(&net, &mut grads, 1.0);
+        assert!(norm.is_finite(), "gradient norm {norm} for frames {v1}/{v2}");
+    }
+    // Long iteration counts stay finite.
+    let inf = Mms::new(&cfg, &Device::flex());
+    let flow = predict_flow(&inf, &cfg, &textured(64, 64, (0.0, 0.0)), &textured(64, 64, (3.0, -2.0)), 32, &Device::flex()).unwrap();
+    assert!(flow.data().iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn overfits_one_batch() {
+    // Two pairs with opposite shifts in one batch: no bias can fit both, so falling loss means
+    // the matching (correlation lookup), the GRU and the upsampling all carry gradients.
+    let dev = Device::flex().autodiff();
+    let cfg = tiny();
+    let mut net = Mms::new(&cfg, &dev);
+    let mut optim = AdamWConfig::new().with_weight_decay(0.0).init();
+    let img = |s| Tensor::<4>::from_data(TensorData::new(textured(64, 64, s).into_vec(), [1, 3, 64, 64]), &dev);
+    let a = Tensor::cat(vec![img((0.0, 0.0)), img((0.0, 0.0))], 0);
+    let b = Tensor::cat(vec![img((3.0, -2.0)), img((-3.0, 2.0))], 0);
+    let gt = Tensor::<4>::ones([2, 2, 64, 64], &dev) * Tensor::<2>::from_floats([[3.0, -2.0], [-3.0, 2.0]], &dev).reshape([2, 2, 1, 1]);
+    let valid = Tensor::<4>::ones([2, 1, 64, 64], &dev);
+    let mut first = None;
+    let mut last = 0.0;
+    for _ in 0..60 {
+        let preds = net.forward(a.clone(), b.clone(), 3, true);
+        let loss = sequence_loss(&preds, gt.clone(), valid.clone(), 0.8);
+        last = loss.clone().into_scalar::<f32>();
+        first.get_or_insert(last);
+        let mut grads = GradientsParams::from_grads(loss.backward(), &net);
+        pins::flow::train::clip::clip_global_norm(&net, &mut grads, 1.0);
+        net = optim.step(1e-3, net, grads);
+    }
+    let first = first.unwrap();
+    assert!(last < 0.4 * first, "loss {first} → {last}");
+}
+
+#[test]
+fn weights_round_trip_and_reject_bad_files() {
+    let dev = Device::flex();
+    let cfg = tiny();
+    let net = Mms::new(&cfg, &dev);
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("w.safetensors");
+    weights::save(&p, &net, &cfg).unwrap();
+    let (loaded, cfg2) = weights::load(&p, &dev).unwrap();
+    assert_eq!(cfg2, cfg);
+    let (a, b) = (textured(64, 64, (0.0, 0.0)), textured(64, 64, (2.0, 1.0)));
+    let f1: Flow = predict_flow(&net, &cfg, &a, &b, 2, &dev).unwrap();
+    let f2: Flow = predict_flow(&loaded, &cfg2, &a, &b, 2, &dev).unwrap();
+    assert_eq!(f1, f2, "a loaded model computes exactly the same flow");
+
+    // Corrupt: truncated.
+    let bytes = std::fs::read(&p).unwrap();
+    let bad = d.path().join("truncated.safetensors");
+    std::fs::write(&bad, &bytes[..bytes.len() / 2]).unwrap();
+    assert!(weights::load(&bad, &dev).is_err());
+    // Garbage.
+    std::fs::write(&bad, b"not a weights file at all").unwrap();
+    let err = weights::load(&bad, &dev).err().unwrap().to_string();
+    assert!(err.contains("truncated.safetensors"), "{err}");
+    // Weights of another config under this config's name.
+    let mut other = tiny();
+    other.hidden_dim = 24;
+    let other_net = Mms::new(&other, &dev);
+    let wrong = d.path().join("wrong.safetensors");
+    let bytes = weights::to_bytes(&other_net, &other).unwrap();
+    // Swap the metadata config for the tiny one: the tensors no longer fit.
+    let tiny_json = serde_json::to_string(&cfg).unwrap();
+    let other_json = serde_json::to_string(&other).unwrap();
+    let text = String::from_utf8_lossy(&bytes).replace(&other_json.replace('"', "\\\""), &tiny_json.replace('"', "\\\""));
+    let _ = text; // header edits change lengths; build the mismatch directly instead:
+    let mixed = weights::to_bytes(&other_net, &cfg);
+    if let Ok(mixed) = mixed {
+        std::fs::write(&wrong, mixed).unwrap();
+        let err = weights::load(&wrong, &dev).err().expect("weights of another config must not load").to_string();
+        assert!(err.contains("do not fit"), "{err}");
+    }
+}
