@@ -75,6 +75,10 @@ struct TrainArgs {
     /// Continue the run in --out from its last checkpoint.
     #[arg(long)]
     resume: bool,
+    /// Stop after this many steps in this session (a checkpoint is written); continue later
+    /// with --resume. The learning-rate schedule still spans the whole run.
+    #[arg(long)]
+    stop_after: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -434,7 +438,7 @@ fn train(a: TrainArgs) -> Result<()> {
     let model = config.model_config()?;
     let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(&model, &burn::prelude::Device::flex()));
     println!("training {} ({params} parameters) on {}", model.name, a.data.display());
-    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, progress: !a.quiet && std::io::stderr().is_terminal() };
+    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, stop_after: a.stop_after, progress: !a.quiet && std::io::stderr().is_terminal() };
     let s = pins::flow::train::train(config, &opts)?;
     println!(
         "{}: {} steps, last loss {:.4}, best validation EPE {}, {:.0} s of training",

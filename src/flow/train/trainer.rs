@@ -34,6 +34,9 @@ pub struct TrainOptions {
     pub resume: bool,
     /// Overrides the config's step count (not allowed to change it on resume).
     pub steps: Option<usize>,
+    /// Stop (with a checkpoint) after this many steps in this session, keeping the schedule
+    /// of the whole run: training in chunks, continued with `resume`.
+    pub stop_after: Option<usize>,
     pub progress: bool,
 }
 
@@ -90,6 +93,8 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     }
 
     let device = Device::flex().autodiff();
+    // The initial weights are a function of the seed too, so two runs of one config agree.
+    device.seed(rng::derive(config.seed, &[rng::purpose::TRAIN, u64::MAX]));
     let mut model = Mms::new(&model_config, &device);
     let mut optim = AdamWConfig::new()
         .with_weight_decay(config.weight_decay as f32)
@@ -115,7 +120,8 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     bar.set_position(start as u64);
     let mut last_loss = f64::NAN;
     let mut step = start;
-    while step < config.steps {
+    let stop = opts.stop_after.map_or(config.steps, |n| (start + n).min(config.steps));
+    while step < stop {
         let t0 = Instant::now();
         let lr = one_cycle(step, config.steps, config.lr, config.pct_start);
         // The batch of step s depends on (seed, s) alone: resuming replays the same data order.
@@ -168,7 +174,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         log.append(&row)?;
         bar.set_message(format!("loss {:.3} epe {:.2}{}", last_loss, epe, best_val.map(|v| format!(" val {v:.2}")).unwrap_or_default()));
         bar.set_position(step as u64);
-        if step % config.checkpoint_every == 0 || step == config.steps {
+        if step % config.checkpoint_every == 0 || step == config.steps || step == stop {
             let model_bytes = model.clone().into_record().into_bytes().map_err(|e| record_error("checkpoint model", e))?;
             let optim_bytes = optim.into_bytes().map_err(|e| record_error("checkpoint optimiser", e))?;
             let state = CheckpointState {
