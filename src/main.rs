@@ -75,6 +75,9 @@ struct TrainArgs {
     /// Continue the run in --out from its last checkpoint.
     #[arg(long)]
     resume: bool,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// Stop after this many steps in this session (a checkpoint is written); continue later
     /// with --resume. The learning-rate schedule still spans the whole run.
     #[arg(long)]
@@ -117,6 +120,9 @@ struct InferArgs {
     /// Refinement iterations (the model's default when absent).
     #[arg(long)]
     iters: Option<usize>,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
 }
 
 #[derive(clap::Args)]
@@ -136,6 +142,9 @@ struct EvalArgs {
     /// Peer results to draw on the same plot (JSON from scripts/flow_baselines.py).
     #[arg(long)]
     peers: Option<PathBuf>,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
 }
 
 #[derive(clap::Args)]
@@ -438,7 +447,7 @@ fn train(a: TrainArgs) -> Result<()> {
     let model = config.model_config()?;
     let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(&model, &burn::prelude::Device::flex()));
     println!("training {} ({params} parameters) on {}", model.name, a.data.display());
-    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, stop_after: a.stop_after, progress: !a.quiet && std::io::stderr().is_terminal() };
+    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, stop_after: a.stop_after, device: pins::flow::device::select(&a.device)?, progress: !a.quiet && std::io::stderr().is_terminal() };
     let s = pins::flow::train::train(config, &opts)?;
     println!(
         "{}: {} steps, last loss {:.4}, best validation EPE {}, {:.0} s of training",
@@ -488,7 +497,7 @@ fn infer(a: InferArgs) -> Result<()> {
         (None, Some(i1), Some(i2)) => vec![(i1.clone(), i2.clone(), a.out.clone(), a.viz.clone())],
         _ => bail!("give either --img1 and --img2, or --frames DIR"),
     };
-    let predictor = Predictor::load(&a.weights)?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
     let iters = a.iters.unwrap_or(predictor.config.iters);
     for (i1, i2, out, viz) in pairs {
         let (x, y) = io::read_image_pair(&i1, &i2)?;
@@ -510,7 +519,7 @@ fn eval(a: EvalArgs) -> Result<()> {
         bail!("--iters values must be 1..=256");
     }
     let data = FlowDataset::open(&a.data)?;
-    let predictor = Predictor::load(&a.weights)?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
     let report = evaluate(&predictor.model, &predictor.config, &data, &a.iters, &predictor.device)?;
     print!("{}", report.markdown());
     if let Some(out) = &a.out {

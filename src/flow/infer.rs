@@ -23,9 +23,13 @@ pub struct Predictor {
 }
 
 impl Predictor {
-    /// Loads a weights file (`default` for the shipped one).
+    /// Loads a weights file (`default` for the shipped one) onto the CPU.
     pub fn load(path: &str) -> Result<Self> {
-        let device = Device::flex();
+        Self::load_on(path, Device::flex())
+    }
+
+    /// Loads a weights file onto `device`.
+    pub fn load_on(path: &str, device: Device) -> Result<Self> {
         let (model, config) = if path == "default" {
             weights::from_bytes(DEFAULT_WEIGHTS, Path::new("datasets/weights/mms-small.safetensors"), &device)?
         } else {

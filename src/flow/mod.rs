@@ -2,6 +2,7 @@
 //! metrics and visualisation.
 
 pub mod data;
+pub mod device;
 pub mod eval;
 pub mod infer;
 pub mod loss;

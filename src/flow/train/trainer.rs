@@ -38,6 +38,8 @@ pub struct TrainOptions {
     /// of the whole run: training in chunks, continued with `resume`.
     pub stop_after: Option<usize>,
     pub progress: bool,
+    /// Where to train (`Device::flex()` by default, see [`crate::flow::device::select`]).
+    pub device: Device,
 }
 
 /// What a run ended with.
@@ -92,7 +94,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         ));
     }
 
-    let device = Device::flex().autodiff();
+    let device = opts.device.clone().autodiff();
     // The initial weights are a function of the seed too, so two runs of one config agree.
     device.seed(rng::derive(config.seed, &[rng::purpose::TRAIN, u64::MAX]));
     let mut model = Mms::new(&model_config, &device);
@@ -163,7 +165,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         let mut row = LogRow { step, lr, loss: last_loss, epe: epe as f64, grad_norm, ms_per_step: ms, val_epe: None, val_px1: None };
         if step % config.val_every == 0 || step == config.steps {
             let valid_model = model.valid();
-            let scores = evaluate_dataset(&valid_model, &model_config, &val_set, config.val_iters, config.val_max_pairs, &Device::flex())?;
+            let scores = evaluate_dataset(&valid_model, &model_config, &val_set, config.val_iters, config.val_max_pairs, &opts.device)?;
             row.val_epe = Some(scores.epe);
             row.val_px1 = Some(scores.px1);
             if best_val.is_none_or(|b| scores.epe < b) {
