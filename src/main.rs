@@ -425,7 +425,7 @@ fn psf(a: PsfArgs) -> Result<()> {
 
 fn bench(a: BenchArgs) -> Result<()> {
     use pins::report::bench::{BenchOptions, run};
-    if a.threads.iter().any(|&t| t == 0) || a.reps == 0 {
+    if a.threads.contains(&0) || a.reps == 0 {
         bail!("--threads and --reps must be positive");
     }
     let opts = BenchOptions { reps: a.reps, threads: a.threads, psf_sizes: a.psf_sizes, ..BenchOptions::default() };

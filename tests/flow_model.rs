@@ -149,7 +149,7 @@ fn weights_round_trip_and_reject_bad_files() {
     let mixed = weights::to_bytes(&other_net, &cfg);
     if let Ok(mixed) = mixed {
         std::fs::write(&wrong, mixed).unwrap();
-        let err = weights::load(&wrong, &dev).err().expect("weights of another config must not load").to_string();
+        let err = weights::load(&wrong, &dev).expect_err("weights of another config must not load").to_string();
         assert!(err.contains("do not fit"), "{err}");
     }
 }

@@ -120,10 +120,10 @@ fn transpose(src: &[Complex32], rows: usize, cols: usize) -> Vec<Complex32> {
 pub fn next_fast_len(n: usize) -> usize {
     let mut m = n.max(2);
     loop {
-        if m % 2 == 0 {
+        if m.is_multiple_of(2) {
             let mut k = m;
             for p in [2, 3, 5] {
-                while k % p == 0 {
+                while k.is_multiple_of(p) {
                     k /= p;
                 }
             }

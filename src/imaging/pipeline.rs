@@ -51,13 +51,16 @@ impl Stage {
     }
 }
 
+/// FFT plans are keyed by (channels, height, width) of the image.
+type PlanKey = (usize, usize, usize);
+
 /// The PSF stage: the colour PSF, its monochrome version for one-channel images, and the FFT
 /// plans prepared per image size.
 pub struct Blur {
     psf: Psf,
     mono: Psf,
     method: ConvMethod,
-    plans: Mutex<HashMap<(usize, usize, usize), Arc<Vec<FftConvolver>>>>,
+    plans: Mutex<HashMap<PlanKey, Arc<Vec<FftConvolver>>>>,
 }
 
 impl Blur {
@@ -185,11 +188,13 @@ impl Camera {
         while i < self.stages.len() {
             // The tail clamp → gamma → quantise(8) is one lookup when the table exists.
             let tail = &self.stages[i..];
-            let tone_tail = match tail {
-                [Stage::Clamp, Stage::Gamma(_), Stage::Quantize(8)] | [Stage::Gamma(_), Stage::Quantize(8)] => true,
-                [Stage::Clamp, Stage::Quantize(8)] | [Stage::Quantize(8)] => true,
-                _ => false,
-            };
+            let tone_tail = matches!(
+                tail,
+                [Stage::Clamp, Stage::Gamma(_), Stage::Quantize(8)]
+                    | [Stage::Gamma(_), Stage::Quantize(8)]
+                    | [Stage::Clamp, Stage::Quantize(8)]
+                    | [Stage::Quantize(8)]
+            );
             if tone_tail && let Some(q) = &self.fused_tone {
                 let has_gamma = tail.iter().any(|s| matches!(s, Stage::Gamma(_)));
                 if has_gamma {

@@ -32,7 +32,8 @@ impl GammaQuantizer {
     /// The level (0..=255) of one value; NaN and values below 0 give 0, above 1 give 255.
     #[inline]
     pub fn level(&self, y: f32) -> u8 {
-        if !(y > 0.0) {
+        // NaN fails every comparison, so it lands here with the negatives.
+        if y.is_nan() || y <= 0.0 {
             return 0;
         }
         if y >= 1.0 {

@@ -39,7 +39,7 @@ pub fn peak_rss_mb() -> f64 {
 /// Runs one measurement: `mode` is `infer` (batch 1) or `train` (batch 2, AdamW step).
 pub fn run(model: &str, mode: &str, height: usize, width: usize, iters: usize, reps: usize) -> Result<FlowBenchRow> {
     let cfg = MmsConfig::named(model)?;
-    if height % 8 != 0 || width % 8 != 0 || height < cfg.min_side() || width < cfg.min_side() {
+    if !height.is_multiple_of(8) || !width.is_multiple_of(8) || height < cfg.min_side() || width < cfg.min_side() {
         return Err(Error::invalid("size", format!("{height}x{width}: sides must be multiples of 8 and at least {}", cfg.min_side())));
     }
     let (ms, batch, params) = match mode {

@@ -11,7 +11,7 @@ use crate::types::Image;
 /// Deterministic lattice value in [0, 1) for integer point (i, j) of a noise field.
 #[inline]
 fn lattice(seed: u64, i: i64, j: i64) -> f32 {
-    let h = rng::splitmix(seed ^ rng::splitmix((i as u64) ^ ((j as u64) << 32 | (j as u64) >> 32)));
+    let h = rng::splitmix(seed ^ rng::splitmix((i as u64) ^ (j as u64).rotate_right(32)));
     (h >> 40) as f32 / (1u64 << 24) as f32
 }
 

@@ -46,8 +46,11 @@ pub fn write(run: &Path, state: &CheckpointState, model: &[u8], optimizer: &[u8]
     Ok(())
 }
 
+/// A checkpoint read back: its state, the model bytes and the optimiser bytes.
+pub type Loaded = (CheckpointState, Vec<u8>, Vec<u8>);
+
 /// Reads the last checkpoint of `run`, if any.
-pub fn read(run: &Path) -> Result<Option<(CheckpointState, Vec<u8>, Vec<u8>)>> {
+pub fn read(run: &Path) -> Result<Option<Loaded>> {
     let p = dir(run).join("state.json");
     if !p.exists() {
         return Ok(None);
