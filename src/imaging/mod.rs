@@ -5,6 +5,7 @@ pub mod convolve;
 pub mod fft2;
 pub mod noise;
 pub mod pipeline;
+pub mod similarity;
 pub mod psf_source;
 pub mod tone;
 pub mod tone_lut;

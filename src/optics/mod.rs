@@ -2,12 +2,16 @@
 //! depth of field, detection limits, stereo depth.
 
 pub mod diffraction;
+pub mod dof;
+pub mod fov;
 pub mod lens;
 pub mod phase;
 mod propagate;
 pub mod psf;
 mod sampling;
+pub mod resolution;
 pub mod spectrum;
+pub mod stereo;
 
 pub use diffraction::{PsfParams, PsfResult, compute_psf, spot_radius_um};
 pub use lens::{Lens, Profile};
