@@ -164,6 +164,9 @@ struct TrainArgs {
     /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
     #[arg(long, default_value = "cpu")]
     device: String,
+    /// Start from these weights (fine-tuning) instead of a random initialisation.
+    #[arg(long)]
+    init: Option<PathBuf>,
     /// Stop after this many steps in this session (a checkpoint is written); continue later
     /// with --resume. The learning-rate schedule still spans the whole run.
     #[arg(long)]
@@ -535,7 +538,7 @@ fn train(a: TrainArgs) -> Result<()> {
     let model = config.model_config()?;
     let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(&model, &burn::prelude::Device::flex()));
     println!("training {} ({params} parameters) on {}", model.name, a.data.display());
-    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, stop_after: a.stop_after, device: pins::flow::device::select(&a.device)?, progress: !a.quiet && std::io::stderr().is_terminal() };
+    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, stop_after: a.stop_after, init: a.init, device: pins::flow::device::select(&a.device)?, progress: !a.quiet && std::io::stderr().is_terminal() };
     let s = pins::flow::train::train(config, &opts)?;
     println!(
         "{}: {} steps, last loss {:.4}, best validation EPE {}, {:.0} s of training",

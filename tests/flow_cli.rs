@@ -82,6 +82,16 @@ fn resume_continues_exactly() {
     // Export, infer and eval with the trained weights.
     let w = tmp.path().join("w.safetensors");
     ok(&pins(&["export", "--run", straight.to_str().unwrap(), "--out", w.to_str().unwrap()]));
+    // Fine-tuning from exported weights starts a new run from them.
+    let tuned = tmp.path().join("tuned");
+    ok(&pins(&["train", "--config", c, "--data", d, "--out", tuned.to_str().unwrap(), "--init", w.to_str().unwrap(), "--steps", "1", "--quiet"]));
+    assert!(tuned.join("last.safetensors").is_file());
+    // Weights of the other model size are refused.
+    let big = tmp.path().join("big.safetensors");
+    let big_cfg = pins::flow::model::MmsConfig::mms();
+    pins::flow::weights::save(&big, &pins::flow::model::Mms::new(&big_cfg, &burn::prelude::Device::flex()), &big_cfg).unwrap();
+    let err = failed(&pins(&["train", "--config", c, "--data", d, "--out", tmp.path().join("x").to_str().unwrap(), "--init", big.to_str().unwrap(), "--quiet"]));
+    assert!(err.contains("mms-small"), "{err}");
     let flo = tmp.path().join("f.flo");
     let viz = tmp.path().join("f.png");
     let (i1, i2) = (data.join("00000_img1.png"), data.join("00000_img2.png"));

@@ -40,6 +40,8 @@ pub struct TrainOptions {
     pub progress: bool,
     /// Where to train (`Device::flex()` by default, see [`crate::flow::device::select`]).
     pub device: Device,
+    /// Start a new run from these weights (fine-tuning) instead of a random initialisation.
+    pub init: Option<PathBuf>,
 }
 
 /// What a run ended with.
@@ -98,6 +100,22 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     // The initial weights are a function of the seed too, so two runs of one config agree.
     device.seed(rng::derive(config.seed, &[rng::purpose::TRAIN, u64::MAX]));
     let mut model = Mms::new(&model_config, &device);
+    if let Some(init) = &opts.init {
+        if opts.resume {
+            return Err(Error::invalid("--init", "cannot be combined with --resume (the checkpoint already holds the weights)"));
+        }
+        let bytes = crate::io::read_bytes(init)?;
+        let stored = weights::read_config(&bytes, init)?;
+        if stored != model_config {
+            return Err(Error::invalid(
+                "--init",
+                format!("{} holds a {} network, but the run trains {}", init.display(), stored.name, model_config.name),
+            ));
+        }
+        let mut store = burn::store::SafetensorsStore::from_bytes(Some(bytes)).validate(true).allow_partial(false);
+        burn::store::ModuleSnapshot::load_from(&mut model, &mut store)
+            .map_err(|e| Error::format(init, format!("cannot load the weights: {e}")))?;
+    }
     let mut optim = AdamWConfig::new()
         .with_weight_decay(config.weight_decay as f32)
         .with_epsilon(config.epsilon as f32)
