@@ -111,7 +111,12 @@ enum OpticsCommand {
     /// Angular sectors, total FoV and overlaps of a tilted array (Note S16), and the focal spot
     /// against the Airy radius across the field of lenses designed for 45° and 80° (Note S2).
     Fov {
-        #[arg(long, value_delimiter = ',', default_value = "-45,0,45", allow_hyphen_values = true)]
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "-45,0,45",
+            allow_hyphen_values = true
+        )]
         tilts_deg: Vec<f64>,
         #[arg(long, default_value_t = 45.0)]
         fov_deg: f64,
@@ -398,7 +403,11 @@ fn generate(a: GenerateArgs) -> Result<()> {
         generator.stage_names().join(" → ")
     );
     if summary.manifest_written {
-        println!("{}/manifest.json lists all {} samples", a.out.display(), summary.total);
+        println!(
+            "{}/manifest.json lists all {} samples",
+            a.out.display(),
+            summary.total
+        );
     } else {
         println!(
             "{} of {} samples complete; manifest.json is written when every shard has finished",
@@ -411,8 +420,10 @@ fn generate(a: GenerateArgs) -> Result<()> {
 fn simulate(a: SimulateArgs) -> Result<()> {
     let mut cfg = match &a.config {
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            serde_json::from_str::<CameraConfig>(&text).with_context(|| format!("config {}", p.display()))?
+            let text =
+                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            serde_json::from_str::<CameraConfig>(&text)
+                .with_context(|| format!("config {}", p.display()))?
         }
         None => CameraConfig::default(),
     };
@@ -470,10 +481,24 @@ fn psf(a: PsfArgs) -> Result<()> {
         },
         tilt_deg: a.tilt,
     };
-    let params = PsfParams { lens, field_angle_deg: a.field_angle, kernel_size: a.size, grid: a.grid, ..PsfParams::default() };
-    let ext = a.out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+    let params = PsfParams {
+        lens,
+        field_angle_deg: a.field_angle,
+        kernel_size: a.size,
+        grid: a.grid,
+        ..PsfParams::default()
+    };
+    let ext = a
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
     if !matches!(ext.as_str(), "exr" | "npy" | "png") {
-        bail!("--out {}: the PSF is written as .exr, .npy or .png", a.out.display());
+        bail!(
+            "--out {}: the PSF is written as .exr, .npy or .png",
+            a.out.display()
+        );
     }
     let started = std::time::Instant::now();
     let result = compute_psf(&params)?;
@@ -482,7 +507,12 @@ fn psf(a: PsfArgs) -> Result<()> {
         // A PNG cannot hold the tiny normalised values; scale each channel to its peak.
         let mut shown = img.clone();
         for c in 0..shown.channels() {
-            let peak = shown.plane(c).iter().cloned().fold(0.0f32, f32::max).max(f32::MIN_POSITIVE);
+            let peak = shown
+                .plane(c)
+                .iter()
+                .cloned()
+                .fold(0.0f32, f32::max)
+                .max(f32::MIN_POSITIVE);
             shown.plane_mut(c).iter_mut().for_each(|v| *v /= peak);
         }
         io::write_image(&a.out, &shown, BitDepth::Sixteen)?;
@@ -519,7 +549,12 @@ fn bench(a: BenchArgs) -> Result<()> {
     if a.threads.contains(&0) || a.reps == 0 {
         bail!("--threads and --reps must be positive");
     }
-    let opts = BenchOptions { reps: a.reps, threads: a.threads, psf_sizes: a.psf_sizes, ..BenchOptions::default() };
+    let opts = BenchOptions {
+        reps: a.reps,
+        threads: a.threads,
+        psf_sizes: a.psf_sizes,
+        ..BenchOptions::default()
+    };
     let report = run(&opts)?;
     print!("{}", report.markdown());
     if let Some(p) = a.json {
@@ -536,16 +571,34 @@ fn train(a: TrainArgs) -> Result<()> {
         None => TrainConfig::default(),
     };
     let model = config.model_config()?;
-    let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(&model, &burn::prelude::Device::flex()));
-    println!("training {} ({params} parameters) on {}", model.name, a.data.display());
-    let opts = TrainOptions { data: a.data, out: a.out.clone(), resume: a.resume, steps: a.steps, stop_after: a.stop_after, init: a.init, device: pins::flow::device::select(&a.device)?, progress: !a.quiet && std::io::stderr().is_terminal() };
+    let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(
+        &model,
+        &burn::prelude::Device::flex(),
+    ));
+    println!(
+        "training {} ({params} parameters) on {}",
+        model.name,
+        a.data.display()
+    );
+    let opts = TrainOptions {
+        data: a.data,
+        out: a.out.clone(),
+        resume: a.resume,
+        steps: a.steps,
+        stop_after: a.stop_after,
+        init: a.init,
+        device: pins::flow::device::select(&a.device)?,
+        progress: !a.quiet && std::io::stderr().is_terminal(),
+    };
     let s = pins::flow::train::train(config, &opts)?;
     println!(
         "{}: {} steps, last loss {:.4}, best validation EPE {}, {:.0} s of training",
         a.out.display(),
         s.steps,
         s.last_loss,
-        s.best_val_epe.map(|v| format!("{v:.3}")).unwrap_or_else(|| "–".into()),
+        s.best_val_epe
+            .map(|v| format!("{v:.3}"))
+            .unwrap_or_else(|| "–".into()),
         s.train_seconds
     );
     Ok(())
@@ -556,38 +609,62 @@ fn export(a: ExportArgs) -> Result<()> {
     let device = burn::prelude::Device::flex();
     let (model, config) = pins::flow::weights::load(&src, &device)?;
     pins::flow::weights::save(&a.out, &model, &config)?;
-    println!("{} → {} ({}, {} parameters)", src.display(), a.out.display(), config.name, pins::flow::weights::parameter_count(&model));
+    println!(
+        "{} → {} ({}, {} parameters)",
+        src.display(),
+        a.out.display(),
+        config.name,
+        pins::flow::weights::parameter_count(&model)
+    );
     Ok(())
 }
 
 fn infer(a: InferArgs) -> Result<()> {
     use pins::flow::{infer::Predictor, viz::flow_to_image};
-    let pairs: Vec<(PathBuf, PathBuf, PathBuf, Option<PathBuf>)> = match (&a.frames, &a.img1, &a.img2) {
-        (Some(dir), None, None) => {
-            let mut frames: Vec<PathBuf> = std::fs::read_dir(dir)
-                .with_context(|| format!("reading {}", dir.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
-                        matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg" | "ppm" | "pgm" | "tif" | "tiff" | "exr")
+    let pairs: Vec<(PathBuf, PathBuf, PathBuf, Option<PathBuf>)> =
+        match (&a.frames, &a.img1, &a.img2) {
+            (Some(dir), None, None) => {
+                let mut frames: Vec<PathBuf> = std::fs::read_dir(dir)
+                    .with_context(|| format!("reading {}", dir.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| {
+                        p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                            matches!(
+                                e.to_ascii_lowercase().as_str(),
+                                "png" | "jpg" | "jpeg" | "ppm" | "pgm" | "tif" | "tiff" | "exr"
+                            )
+                        })
                     })
-                })
-                .collect();
-            frames.sort();
-            if frames.len() < 2 {
-                bail!("--frames {}: need at least two images, found {}", dir.display(), frames.len());
+                    .collect();
+                frames.sort();
+                if frames.len() < 2 {
+                    bail!(
+                        "--frames {}: need at least two images, found {}",
+                        dir.display(),
+                        frames.len()
+                    );
+                }
+                frames
+                    .windows(2)
+                    .map(|w| {
+                        let stem = w[0]
+                            .file_stem()
+                            .map(|s| s.to_string_lossy().into_owned())
+                            .unwrap_or_default();
+                        (
+                            w[0].clone(),
+                            w[1].clone(),
+                            a.out.join(format!("{stem}.flo")),
+                            a.viz.as_ref().map(|v| v.join(format!("{stem}.png"))),
+                        )
+                    })
+                    .collect()
             }
-            frames
-                .windows(2)
-                .map(|w| {
-                    let stem = w[0].file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-                    (w[0].clone(), w[1].clone(), a.out.join(format!("{stem}.flo")), a.viz.as_ref().map(|v| v.join(format!("{stem}.png"))))
-                })
-                .collect()
-        }
-        (None, Some(i1), Some(i2)) => vec![(i1.clone(), i2.clone(), a.out.clone(), a.viz.clone())],
-        _ => bail!("give either --img1 and --img2, or --frames DIR"),
-    };
+            (None, Some(i1), Some(i2)) => {
+                vec![(i1.clone(), i2.clone(), a.out.clone(), a.viz.clone())]
+            }
+            _ => bail!("give either --img1 and --img2, or --frames DIR"),
+        };
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
     let iters = a.iters.unwrap_or(predictor.config.iters);
     for (i1, i2, out, viz) in pairs {
@@ -599,7 +676,14 @@ fn infer(a: InferArgs) -> Result<()> {
         if let Some(v) = viz {
             io::write_image(&v, &flow_to_image(&flow, None), BitDepth::Eight)?;
         }
-        println!("{} → {}: {}x{}, max |flow| {:.2} px, {iters} iterations, {ms:.0} ms", i1.display(), out.display(), flow.width(), flow.height(), flow.max_magnitude());
+        println!(
+            "{} → {}: {}x{}, max |flow| {:.2} px, {iters} iterations, {ms:.0} ms",
+            i1.display(),
+            out.display(),
+            flow.width(),
+            flow.height(),
+            flow.max_magnitude()
+        );
     }
     Ok(())
 }
@@ -611,7 +695,13 @@ fn eval(a: EvalArgs) -> Result<()> {
     }
     let data = FlowDataset::open(&a.data)?;
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
-    let report = evaluate(&predictor.model, &predictor.config, &data, &a.iters, &predictor.device)?;
+    let report = evaluate(
+        &predictor.model,
+        &predictor.config,
+        &data,
+        &a.iters,
+        &predictor.device,
+    )?;
     print!("{}", report.markdown());
     if let Some(out) = &a.out {
         let text = serde_json::to_string_pretty(&report)?;
@@ -646,44 +736,100 @@ fn compare(a: CompareArgs) -> Result<()> {
 fn optics(c: OpticsCommand) -> Result<()> {
     use pins::optics::{Lens, Profile, dof::DofParams, fov, resolution::resolution, stereo};
     match c {
-        OpticsCommand::Dof { offsets_um, focal_mm, diameter_mm, pixel_um, coc_pixels, json } => {
-            let p = DofParams { focal_mm, diameter_mm, pixel_um, coc_pixels };
-            let rows = offsets_um.iter().map(|&o| p.range(o)).collect::<pins::Result<Vec<_>>>()?;
+        OpticsCommand::Dof {
+            offsets_um,
+            focal_mm,
+            diameter_mm,
+            pixel_um,
+            coc_pixels,
+            json,
+        } => {
+            let p = DofParams {
+                focal_mm,
+                diameter_mm,
+                pixel_um,
+                coc_pixels,
+            };
+            let rows = offsets_um
+                .iter()
+                .map(|&o| p.range(o))
+                .collect::<pins::Result<Vec<_>>>()?;
             if json {
                 println!("{}", serde_json::json!({ "rows": rows }));
             } else {
-                println!("Δv_max = c·F/# = {:.2} µm\n\n| v0 − f (µm) | u_near (m) | u_far (m) |\n|---|---|---|", p.max_shift_m() * 1e6);
+                println!(
+                    "Δv_max = c·F/# = {:.2} µm\n\n| v0 − f (µm) | u_near (m) | u_far (m) |\n|---|---|---|",
+                    p.max_shift_m() * 1e6
+                );
                 for r in rows {
-                    let far = r.u_far_m.map(|v| format!("{v:.2}")).unwrap_or_else(|| "∞".into());
+                    let far = r
+                        .u_far_m
+                        .map(|v| format!("{v:.2}"))
+                        .unwrap_or_else(|| "∞".into());
                     println!("| {} | {:.2} | {} |", r.v0_minus_f_um, r.u_near_m, far);
                 }
             }
         }
-        OpticsCommand::Resolution { distance_m, pixel_um, focal_mm, min_shift_px, min_target_px, json } => {
+        OpticsCommand::Resolution {
+            distance_m,
+            pixel_um,
+            focal_mm,
+            min_shift_px,
+            min_target_px,
+            json,
+        } => {
             let r = resolution(pixel_um, focal_mm, distance_m, min_shift_px, min_target_px)?;
             if json {
                 println!("{}", serde_json::to_string(&r)?);
             } else {
                 println!(
                     "one pixel: {:.3} mrad ({:.4}°), {:.2} cm at {} m\nsmallest displacement ({min_shift_px} px): {:.2} cm\nsmallest object ({min_target_px} px): {:.2} cm",
-                    r.pixel_angle_mrad, r.pixel_angle_deg, r.pixel_footprint_m * 100.0, r.distance_m, r.min_displacement_m * 100.0, r.min_object_m * 100.0
+                    r.pixel_angle_mrad,
+                    r.pixel_angle_deg,
+                    r.pixel_footprint_m * 100.0,
+                    r.distance_m,
+                    r.min_displacement_m * 100.0,
+                    r.min_object_m * 100.0
                 );
             }
         }
-        OpticsCommand::Stereo { x1_mm, x2_mm, baseline_m, focal_mm, profile, json } => {
+        OpticsCommand::Stereo {
+            x1_mm,
+            x2_mm,
+            baseline_m,
+            focal_mm,
+            profile,
+            json,
+        } => {
             let p = match profile {
                 ProfileArg::Hyperbolic => Profile::Hyperbolic,
                 ProfileArg::Quadratic => Profile::Quadratic,
             };
             let z = stereo::depth(p, x1_mm, x2_mm, focal_mm, baseline_m)?;
-            let (a, b) = (stereo::incident_angle(p, x1_mm, focal_mm)?, stereo::incident_angle(p, x2_mm, focal_mm)?);
+            let (a, b) = (
+                stereo::incident_angle(p, x1_mm, focal_mm)?,
+                stereo::incident_angle(p, x2_mm, focal_mm)?,
+            );
             if json {
-                println!("{}", serde_json::json!({"depth_m": z, "alpha_deg": a.to_degrees(), "beta_deg": b.to_degrees()}));
+                println!(
+                    "{}",
+                    serde_json::json!({"depth_m": z, "alpha_deg": a.to_degrees(), "beta_deg": b.to_degrees()})
+                );
             } else {
-                println!("α = {:.4}°, β = {:.4}°, depth Z = {z:.4} m", a.to_degrees(), b.to_degrees());
+                println!(
+                    "α = {:.4}°, β = {:.4}°, depth Z = {z:.4} m",
+                    a.to_degrees(),
+                    b.to_degrees()
+                );
             }
         }
-        OpticsCommand::Fov { tilts_deg, fov_deg, spots, grid, json } => {
+        OpticsCommand::Fov {
+            tilts_deg,
+            fov_deg,
+            spots,
+            grid,
+            json,
+        } => {
             let cov = fov::coverage(&tilts_deg, fov_deg)?;
             let mut sweeps = Vec::new();
             if spots {
@@ -692,17 +838,31 @@ fn optics(c: OpticsCommand) -> Result<()> {
                 }
             }
             if json {
-                let s: Vec<_> = sweeps.iter().map(|(d, r)| serde_json::json!({"designed_fov_deg": d, "rows": r})).collect();
+                let s: Vec<_> = sweeps
+                    .iter()
+                    .map(|(d, r)| serde_json::json!({"designed_fov_deg": d, "rows": r}))
+                    .collect();
                 println!("{}", serde_json::json!({"coverage": cov, "spots": s}));
             } else {
                 for (i, s) in cov.sectors.iter().enumerate() {
                     println!("lens {}: {:.1}° … {:.1}°", i + 1, s[0], s[1]);
                 }
-                println!("total field of view {:.1}°; neighbour overlaps {:?}°", cov.total_deg, cov.overlaps_deg);
+                println!(
+                    "total field of view {:.1}°; neighbour overlaps {:?}°",
+                    cov.total_deg, cov.overlaps_deg
+                );
                 for (design, rows) in sweeps {
-                    println!("\nlens designed for {design}° (hyperbolic, 532 nm): spot radius / Airy radius");
+                    println!(
+                        "\nlens designed for {design}° (hyperbolic, 532 nm): spot radius / Airy radius"
+                    );
                     for r in rows {
-                        println!("  {:5.1}°: {:8.2} µm / {:.2} µm = {:.1}", r.field_angle_deg, r.spot_radius_um, r.airy_radius_um, r.spot_radius_um / r.airy_radius_um);
+                        println!(
+                            "  {:5.1}°: {:8.2} µm / {:.2} µm = {:.1}",
+                            r.field_angle_deg,
+                            r.spot_radius_um,
+                            r.airy_radius_um,
+                            r.spot_radius_um / r.airy_radius_um
+                        );
                     }
                 }
             }

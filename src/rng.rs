@@ -18,7 +18,8 @@ pub fn splitmix(mut z: u64) -> u64 {
 
 /// A seed derived from a parent seed and a path of keys (stream, sample, channel, row…).
 pub fn derive(seed: u64, keys: &[u64]) -> u64 {
-    keys.iter().fold(splitmix(seed), |acc, &k| splitmix(acc ^ splitmix(k)))
+    keys.iter()
+        .fold(splitmix(seed), |acc, &k| splitmix(acc ^ splitmix(k)))
 }
 
 /// A generator for the stream named by `keys` under `seed`.
@@ -45,14 +46,18 @@ mod tests {
     fn derived_streams_differ_and_repeat() {
         assert_ne!(derive(1, &[2, 3]), derive(1, &[3, 2]));
         assert_ne!(derive(1, &[2]), derive(2, &[2]));
-        let a: Vec<u64> = (0..4).map({
-            let mut r = stream(9, &[1]);
-            move |_| r.next_u64()
-        }).collect();
-        let b: Vec<u64> = (0..4).map({
-            let mut r = stream(9, &[1]);
-            move |_| r.next_u64()
-        }).collect();
+        let a: Vec<u64> = (0..4)
+            .map({
+                let mut r = stream(9, &[1]);
+                move |_| r.next_u64()
+            })
+            .collect();
+        let b: Vec<u64> = (0..4)
+            .map({
+                let mut r = stream(9, &[1]);
+                move |_| r.next_u64()
+            })
+            .collect();
         assert_eq!(a, b);
     }
 }

@@ -8,8 +8,11 @@ fn every_experiment_config_is_valid() {
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
         let p = entry.unwrap().path();
-        if p.extension().is_some_and(|e| e == "json") && p.file_name().is_some_and(|f| f != "train_small.json") {
-            pins::dataset::GeneratorConfig::from_file(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        if p.extension().is_some_and(|e| e == "json")
+            && p.file_name().is_some_and(|f| f != "train_small.json")
+        {
+            pins::dataset::GeneratorConfig::from_file(&p)
+                .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
             n += 1;
         }
     }

@@ -10,16 +10,27 @@ use pins::imaging::CameraConfig;
 use pins::scene::ChairsConfig;
 
 fn pins(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pins")).args(args).output().expect("run pins")
+    Command::new(env!("CARGO_BIN_EXE_pins"))
+        .args(args)
+        .output()
+        .expect("run pins")
 }
 
 fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "pins failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "pins failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn failed(out: &Output) -> String {
-    assert!(!out.status.success(), "pins should fail: {}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        !out.status.success(),
+        "pins should fail: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
@@ -29,11 +40,20 @@ fn tiny_dataset(dir: &Path) -> PathBuf {
     let cfg = GeneratorConfig {
         count: 4,
         seed: 3,
-        scene: SceneSpec::Chairs(ChairsConfig { width: 80, height: 64, sprites: [1, 2], supersample: 1, ..ChairsConfig::default() }),
+        scene: SceneSpec::Chairs(ChairsConfig {
+            width: 80,
+            height: 64,
+            sprites: [1, 2],
+            supersample: 1,
+            ..ChairsConfig::default()
+        }),
         camera: CameraConfig::ideal(),
         save_clean: false,
     };
-    Generator::new(cfg).unwrap().run(&out, Shard::ALL, false).unwrap();
+    Generator::new(cfg)
+        .unwrap()
+        .run(&out, Shard::ALL, false)
+        .unwrap();
     out
 }
 
@@ -49,7 +69,12 @@ fn tiny_train_config(dir: &Path) -> PathBuf {
 }
 
 fn losses(run: &Path) -> Vec<String> {
-    fs::read_to_string(run.join("log.csv")).unwrap().lines().skip(1).map(|l| l.split(',').take(4).collect::<Vec<_>>().join(",")).collect()
+    fs::read_to_string(run.join("log.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').take(4).collect::<Vec<_>>().join(","))
+        .collect()
 }
 
 #[test]
@@ -59,50 +84,143 @@ fn resume_continues_exactly() {
     let cfg = tiny_train_config(tmp.path());
     let (c, d) = (cfg.to_str().unwrap(), data.to_str().unwrap());
     let straight = tmp.path().join("straight");
-    ok(&pins(&["train", "--config", c, "--data", d, "--out", straight.to_str().unwrap(), "--quiet"]));
+    ok(&pins(&[
+        "train",
+        "--config",
+        c,
+        "--data",
+        d,
+        "--out",
+        straight.to_str().unwrap(),
+        "--quiet",
+    ]));
     let chunked = tmp.path().join("chunked");
     let co = chunked.to_str().unwrap();
-    ok(&pins(&["train", "--config", c, "--data", d, "--out", co, "--stop-after", "2", "--quiet"]));
+    ok(&pins(&[
+        "train",
+        "--config",
+        c,
+        "--data",
+        d,
+        "--out",
+        co,
+        "--stop-after",
+        "2",
+        "--quiet",
+    ]));
     assert_eq!(losses(&chunked).len(), 2);
     // Without --resume an existing run is refused; with it, training continues at step 3.
-    let err = failed(&pins(&["train", "--config", c, "--data", d, "--out", co, "--quiet"]));
+    let err = failed(&pins(&[
+        "train", "--config", c, "--data", d, "--out", co, "--quiet",
+    ]));
     assert!(err.contains("--resume"), "{err}");
-    ok(&pins(&["train", "--config", c, "--data", d, "--out", co, "--resume", "--quiet"]));
-    assert_eq!(losses(&straight), losses(&chunked), "a resumed run must repeat the same steps");
+    ok(&pins(&[
+        "train", "--config", c, "--data", d, "--out", co, "--resume", "--quiet",
+    ]));
+    assert_eq!(
+        losses(&straight),
+        losses(&chunked),
+        "a resumed run must repeat the same steps"
+    );
     // Same weights: the same flow to the last bit (the files may order their tensors differently).
     let dev = burn::prelude::Device::flex();
     let (m1, c1) = pins::flow::weights::load(&straight.join("last.safetensors"), &dev).unwrap();
     let (m2, c2) = pins::flow::weights::load(&chunked.join("last.safetensors"), &dev).unwrap();
-    let (a, b) = pins::io::read_image_pair(&data.join("00001_img1.png"), &data.join("00001_img2.png")).unwrap();
+    let (a, b) =
+        pins::io::read_image_pair(&data.join("00001_img1.png"), &data.join("00001_img2.png"))
+            .unwrap();
     let f1 = pins::flow::infer::predict_flow(&m1, &c1, &a, &b, 2, &dev).unwrap();
     let f2 = pins::flow::infer::predict_flow(&m2, &c2, &a, &b, 2, &dev).unwrap();
-    assert!(f1 == f2, "resumed weights differ from the uninterrupted run's");
+    assert!(
+        f1 == f2,
+        "resumed weights differ from the uninterrupted run's"
+    );
     assert!(straight.join("curves.png").is_file());
 
     // Export, infer and eval with the trained weights.
     let w = tmp.path().join("w.safetensors");
-    ok(&pins(&["export", "--run", straight.to_str().unwrap(), "--out", w.to_str().unwrap()]));
+    ok(&pins(&[
+        "export",
+        "--run",
+        straight.to_str().unwrap(),
+        "--out",
+        w.to_str().unwrap(),
+    ]));
     // Fine-tuning from exported weights starts a new run from them.
     let tuned = tmp.path().join("tuned");
-    ok(&pins(&["train", "--config", c, "--data", d, "--out", tuned.to_str().unwrap(), "--init", w.to_str().unwrap(), "--steps", "1", "--quiet"]));
+    ok(&pins(&[
+        "train",
+        "--config",
+        c,
+        "--data",
+        d,
+        "--out",
+        tuned.to_str().unwrap(),
+        "--init",
+        w.to_str().unwrap(),
+        "--steps",
+        "1",
+        "--quiet",
+    ]));
     assert!(tuned.join("last.safetensors").is_file());
     // Weights of the other model size are refused.
     let big = tmp.path().join("big.safetensors");
     let big_cfg = pins::flow::model::MmsConfig::mms();
-    pins::flow::weights::save(&big, &pins::flow::model::Mms::new(&big_cfg, &burn::prelude::Device::flex()), &big_cfg).unwrap();
-    let err = failed(&pins(&["train", "--config", c, "--data", d, "--out", tmp.path().join("x").to_str().unwrap(), "--init", big.to_str().unwrap(), "--quiet"]));
+    pins::flow::weights::save(
+        &big,
+        &pins::flow::model::Mms::new(&big_cfg, &burn::prelude::Device::flex()),
+        &big_cfg,
+    )
+    .unwrap();
+    let err = failed(&pins(&[
+        "train",
+        "--config",
+        c,
+        "--data",
+        d,
+        "--out",
+        tmp.path().join("x").to_str().unwrap(),
+        "--init",
+        big.to_str().unwrap(),
+        "--quiet",
+    ]));
     assert!(err.contains("mms-small"), "{err}");
     let flo = tmp.path().join("f.flo");
     let viz = tmp.path().join("f.png");
     let (i1, i2) = (data.join("00000_img1.png"), data.join("00000_img2.png"));
-    ok(&pins(&["infer", "--weights", w.to_str().unwrap(), "--img1", i1.to_str().unwrap(), "--img2", i2.to_str().unwrap(), "--out", flo.to_str().unwrap(), "--viz", viz.to_str().unwrap(), "--iters", "3"]));
+    ok(&pins(&[
+        "infer",
+        "--weights",
+        w.to_str().unwrap(),
+        "--img1",
+        i1.to_str().unwrap(),
+        "--img2",
+        i2.to_str().unwrap(),
+        "--out",
+        flo.to_str().unwrap(),
+        "--viz",
+        viz.to_str().unwrap(),
+        "--iters",
+        "3",
+    ]));
     let flow = pins::io::read_flo(&flo).unwrap();
     assert_eq!((flow.width(), flow.height()), (80, 64));
     assert!(viz.is_file());
     let report = tmp.path().join("report.json");
-    let table = ok(&pins(&["eval", "--weights", w.to_str().unwrap(), "--data", d, "--iters", "1,3", "--out", report.to_str().unwrap()]));
+    let table = ok(&pins(&[
+        "eval",
+        "--weights",
+        w.to_str().unwrap(),
+        "--data",
+        d,
+        "--iters",
+        "1,3",
+        "--out",
+        report.to_str().unwrap(),
+    ]));
     assert!(table.contains("zero flow"), "{table}");
-    let json: serde_json::Value = serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(json["rows"].as_array().unwrap().len(), 2);
     for key in ["iters", "epe", "ae_deg", "px1", "px3", "px5", "ms_per_pair"] {
         assert!(json["rows"][0][key].is_number(), "{key}");
@@ -122,39 +240,96 @@ fn bad_input_fails_clearly_without_output() {
     // A corrupt weights file.
     let corrupt = t.join("corrupt.safetensors");
     fs::write(&corrupt, b"\x10\x00\x00\x00\x00\x00\x00\x00{not json}").unwrap();
-    let err = failed(&pins(&["infer", "--weights", corrupt.to_str().unwrap(), "--img1", i1.to_str().unwrap(), "--img2", i2.to_str().unwrap(), "--out", o]));
+    let err = failed(&pins(&[
+        "infer",
+        "--weights",
+        corrupt.to_str().unwrap(),
+        "--img1",
+        i1.to_str().unwrap(),
+        "--img2",
+        i2.to_str().unwrap(),
+        "--out",
+        o,
+    ]));
     assert!(err.contains("corrupt.safetensors"), "{err}");
     assert!(!out.exists());
     // Images of different sizes.
     let small = t.join("small.png");
-    pins::io::write_image(&small, &pins::Image::filled(3, 32, 40, 0.5), pins::io::BitDepth::Eight).unwrap();
-    let err = failed(&pins(&["infer", "--img1", i1.to_str().unwrap(), "--img2", small.to_str().unwrap(), "--out", o]));
+    pins::io::write_image(
+        &small,
+        &pins::Image::filled(3, 32, 40, 0.5),
+        pins::io::BitDepth::Eight,
+    )
+    .unwrap();
+    let err = failed(&pins(&[
+        "infer",
+        "--img1",
+        i1.to_str().unwrap(),
+        "--img2",
+        small.to_str().unwrap(),
+        "--out",
+        o,
+    ]));
     assert!(err.contains("small.png"), "{err}");
     assert!(!out.exists());
     // Unreadable image.
-    let err = failed(&pins(&["infer", "--img1", "/no/such.png", "--img2", i2.to_str().unwrap(), "--out", o]));
+    let err = failed(&pins(&[
+        "infer",
+        "--img1",
+        "/no/such.png",
+        "--img2",
+        i2.to_str().unwrap(),
+        "--out",
+        o,
+    ]));
     assert!(err.contains("such.png"), "{err}");
     assert!(!out.exists());
     // Empty and malformed dataset folders.
     let empty = t.join("empty");
     fs::create_dir_all(&empty).unwrap();
     let report = t.join("r.json");
-    let err = failed(&pins(&["eval", "--data", empty.to_str().unwrap(), "--out", report.to_str().unwrap()]));
+    let err = failed(&pins(&[
+        "eval",
+        "--data",
+        empty.to_str().unwrap(),
+        "--out",
+        report.to_str().unwrap(),
+    ]));
     assert!(err.contains("no image pairs"), "{err}");
     let broken = t.join("broken");
     fs::create_dir_all(&broken).unwrap();
     fs::copy(&i1, broken.join("00000_img1.png")).unwrap();
     fs::copy(&i2, broken.join("00000_img2.png")).unwrap();
     fs::write(broken.join("00000_flow.flo"), b"PIEH").unwrap();
-    let err = failed(&pins(&["eval", "--data", broken.to_str().unwrap(), "--out", report.to_str().unwrap()]));
+    let err = failed(&pins(&[
+        "eval",
+        "--data",
+        broken.to_str().unwrap(),
+        "--out",
+        report.to_str().unwrap(),
+    ]));
     assert!(err.contains("00000_flow.flo"), "{err}");
     assert!(!report.exists());
     // Training: bad config values and a missing dataset.
     let bad = t.join("bad.json");
     fs::write(&bad, r#"{"crop": [100, 64]}"#).unwrap();
-    let err = failed(&pins(&["train", "--config", bad.to_str().unwrap(), "--data", data.to_str().unwrap(), "--out", t.join("run").to_str().unwrap()]));
+    let err = failed(&pins(&[
+        "train",
+        "--config",
+        bad.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--out",
+        t.join("run").to_str().unwrap(),
+    ]));
     assert!(err.contains("crop"), "{err}");
-    let err = failed(&pins(&["train", "--data", "/no/such/data", "--out", t.join("run").to_str().unwrap()]));
+    let err = failed(&pins(&[
+        "train",
+        "--data",
+        "/no/such/data",
+        "--out",
+        t.join("run").to_str().unwrap(),
+    ]));
     assert!(err.contains("/no/such/data"), "{err}");
     assert!(!t.join("run").exists());
 }

@@ -16,12 +16,20 @@ fn pins(args: &[&str], threads: Option<usize>) -> Output {
 }
 
 fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "pins failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "pins failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn failed(out: &Output) -> String {
-    assert!(!out.status.success(), "pins should fail: {}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        !out.status.success(),
+        "pins should fail: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
@@ -30,7 +38,12 @@ fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap())
-        .map(|e| (e.file_name().to_string_lossy().into_owned(), fs::read(e.path()).unwrap()))
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                fs::read(e.path()).unwrap(),
+            )
+        })
         .collect()
 }
 
@@ -48,14 +61,49 @@ fn output_is_bit_identical_across_threads_and_shards() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = write_config(tmp.path(), "small.json", SMALL);
     let cfg = cfg.to_str().unwrap();
-    let (one, two, sharded) = (tmp.path().join("one"), tmp.path().join("two"), tmp.path().join("sharded"));
-    ok(&pins(&["generate", "--config", cfg, "--out", one.to_str().unwrap()], Some(1)));
-    ok(&pins(&["generate", "--config", cfg, "--out", two.to_str().unwrap()], Some(2)));
-    let first = ok(&pins(&["generate", "--config", cfg, "--out", sharded.to_str().unwrap(), "--shard", "1/3"], Some(2)));
-    assert!(first.contains("manifest.json is written when every shard"), "{first}");
+    let (one, two, sharded) = (
+        tmp.path().join("one"),
+        tmp.path().join("two"),
+        tmp.path().join("sharded"),
+    );
+    ok(&pins(
+        &["generate", "--config", cfg, "--out", one.to_str().unwrap()],
+        Some(1),
+    ));
+    ok(&pins(
+        &["generate", "--config", cfg, "--out", two.to_str().unwrap()],
+        Some(2),
+    ));
+    let first = ok(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg,
+            "--out",
+            sharded.to_str().unwrap(),
+            "--shard",
+            "1/3",
+        ],
+        Some(2),
+    ));
+    assert!(
+        first.contains("manifest.json is written when every shard"),
+        "{first}"
+    );
     assert!(!sharded.join("manifest.json").exists());
     for k in ["0/3", "2/3"] {
-        ok(&pins(&["generate", "--config", cfg, "--out", sharded.to_str().unwrap(), "--shard", k], Some(1)));
+        ok(&pins(
+            &[
+                "generate",
+                "--config",
+                cfg,
+                "--out",
+                sharded.to_str().unwrap(),
+                "--shard",
+                k,
+            ],
+            Some(1),
+        ));
     }
     let (a, b, c) = (snapshot(&one), snapshot(&two), snapshot(&sharded));
     assert_eq!(a.len(), 6 * 4 + 2, "{:?}", a.keys().collect::<Vec<_>>());
@@ -63,7 +111,18 @@ fn output_is_bit_identical_across_threads_and_shards() {
     assert_eq!(a, c, "shard split changed the bytes");
     // Another seed gives other images.
     let other = tmp.path().join("other");
-    ok(&pins(&["generate", "--config", cfg, "--out", other.to_str().unwrap(), "--seed", "43"], None));
+    ok(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg,
+            "--out",
+            other.to_str().unwrap(),
+            "--seed",
+            "43",
+        ],
+        None,
+    ));
     assert_ne!(a["00000_img1.png"], snapshot(&other)["00000_img1.png"]);
 }
 
@@ -72,7 +131,13 @@ fn rerun_keeps_complete_samples_and_redoes_broken_ones() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = write_config(tmp.path(), "small.json", SMALL);
     let out = tmp.path().join("ds");
-    let args = ["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()];
+    let args = [
+        "generate",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
     ok(&pins(&args, None));
     let before = snapshot(&out);
     // An interrupted run: one file missing, a stray temporary file.
@@ -82,7 +147,18 @@ fn rerun_keeps_complete_samples_and_redoes_broken_ones() {
     assert!(msg.contains("1 samples generated, 5 kept"), "{msg}");
     assert_eq!(snapshot(&out), before);
     // A different config must not be mixed into the same folder.
-    let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap(), "--seed", "7"], None));
+    let err = failed(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--seed",
+            "7",
+        ],
+        None,
+    ));
     assert!(err.contains("another config"), "{err}");
 }
 
@@ -98,10 +174,22 @@ fn only_what_the_scene_needs_is_written() {
             "camera": {"psf": "delta", "brightness": 1, "gamma": 1, "noise": {"a": 0, "b": 0}}}"#,
     );
     let out = tmp.path().join("still");
-    let msg = ok(&pins(&["generate", "--config", still.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    let msg = ok(&pins(
+        &[
+            "generate",
+            "--config",
+            still.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        None,
+    ));
     assert!(msg.contains("camera stages: quantize"), "{msg}");
     let files = snapshot(&out);
-    assert!(!files.keys().any(|k| k.ends_with(".flo")), "a static scene wrote flow");
+    assert!(
+        !files.keys().any(|k| k.ends_with(".flo")),
+        "a static scene wrote flow"
+    );
     let img = pins::io::read_image(&out.join("00000_img1.png")).unwrap();
     assert_eq!(img.channels(), 1, "a grey scene stays one channel");
     let manifest = pins::dataset::Manifest::read(&out.join("manifest.json")).unwrap();
@@ -112,9 +200,22 @@ fn only_what_the_scene_needs_is_written() {
 #[test]
 fn test_patterns_carry_exact_flow() {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = write_config(tmp.path(), "rocket.json", r#"{"count": 1, "scene": {"kind": "rocket", "step": "up_right"}}"#);
+    let cfg = write_config(
+        tmp.path(),
+        "rocket.json",
+        r#"{"count": 1, "scene": {"kind": "rocket", "step": "up_right"}}"#,
+    );
     let out = tmp.path().join("rocket");
-    ok(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    ok(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        None,
+    ));
     let flow = pins::io::read_flo(&out.join("00000_flow.flo")).unwrap();
     assert_eq!((flow.width(), flow.height()), (701, 701));
     assert_eq!(flow.get(350, 350), (3.0, -3.0));
@@ -138,21 +239,40 @@ fn real_dataset_passes_through_the_camera_keeping_its_flow() {
     let cfg = write_config(
         tmp.path(),
         "real.json",
-        &format!(r#"{{"count": 100, "scene": {{"kind": "dataset", "path": {:?}}}}}"#, src.to_str().unwrap()),
+        &format!(
+            r#"{{"count": 100, "scene": {{"kind": "dataset", "path": {:?}}}}}"#,
+            src.to_str().unwrap()
+        ),
     );
     let out = tmp.path().join("real");
-    ok(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    ok(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        None,
+    ));
     let manifest = pins::dataset::Manifest::read(&out.join("manifest.json")).unwrap();
     assert_eq!(manifest.count, 3, "three FlyingChairs examples");
     let original = pins::io::read_flo(&src.join("0000001-gt.flo")).unwrap();
-    assert_eq!(pins::io::read_flo(&out.join("00000_flow.flo")).unwrap(), original);
+    assert_eq!(
+        pins::io::read_flo(&out.join("00000_flow.flo")).unwrap(),
+        original
+    );
     let (clean, seen) = (
         pins::io::read_image(&src.join("0000001-img0.ppm")).unwrap(),
         pins::io::read_image(&out.join("00000_img1.png")).unwrap(),
     );
     assert_eq!(clean.shape(), seen.shape());
-    let mean = |i: &pins::Image| i.data().iter().map(|&v| v as f64).sum::<f64>() / i.data().len() as f64;
-    assert!(mean(&seen) < 0.8 * mean(&clean), "the camera dims (×0.8, γ = 1.7)");
+    let mean =
+        |i: &pins::Image| i.data().iter().map(|&v| v as f64).sum::<f64>() / i.data().len() as f64;
+    assert!(
+        mean(&seen) < 0.8 * mean(&clean),
+        "the camera dims (×0.8, γ = 1.7)"
+    );
 }
 
 #[test]
@@ -162,7 +282,16 @@ fn bad_input_fails_clearly_without_output() {
     let out = t.join("never");
     // Unknown config key, named in the message.
     let cfg = write_config(t, "typo.json", r#"{"count": 2, "camera": {"gama": 1.2}}"#);
-    let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+    let err = failed(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        None,
+    ));
     assert!(err.contains("gama"), "{err}");
     // Bad values.
     for (json, word) in [
@@ -172,10 +301,22 @@ fn bad_input_fails_clearly_without_output() {
         (r#"{"camera": {"psf": "/no/such/psf.png"}}"#, "psf.png"),
     ] {
         let cfg = write_config(t, "bad.json", json);
-        let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
+        let err = failed(&pins(
+            &[
+                "generate",
+                "--config",
+                cfg.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            None,
+        ));
         assert!(err.to_lowercase().contains(word), "{json}: {err}");
     }
-    let err = failed(&pins(&["generate", "--out", out.to_str().unwrap(), "--shard", "3/2"], None));
+    let err = failed(&pins(
+        &["generate", "--out", out.to_str().unwrap(), "--shard", "3/2"],
+        None,
+    ));
     assert!(err.contains("--shard"), "{err}");
     assert!(!out.exists(), "a failed run left output behind");
 
@@ -184,7 +325,12 @@ fn bad_input_fails_clearly_without_output() {
     let corrupt = t.join("corrupt.png");
     fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").unwrap();
     let good = t.join("good.png");
-    pins::io::write_image(&good, &pins::Image::filled(3, 16, 16, 0.5), pins::io::BitDepth::Eight).unwrap();
+    pins::io::write_image(
+        &good,
+        &pins::Image::filled(3, 16, 16, 0.5),
+        pins::io::BitDepth::Eight,
+    )
+    .unwrap();
     let mut nan = pins::Image::filled(1, 5, 5, 0.1);
     nan.set(0, 2, 2, f32::NAN);
     let nan_psf = t.join("nan_psf.npy");
@@ -198,21 +344,82 @@ fn bad_input_fails_clearly_without_output() {
     let o = img_out.to_str().unwrap();
     let g = good.to_str().unwrap();
     for (args, word) in [
-        (vec!["simulate", "--in", "/no/such.png", "--out", o], "such.png"),
-        (vec!["simulate", "--in", corrupt.to_str().unwrap(), "--out", o], "corrupt.png"),
-        (vec!["simulate", "--in", g, "--out", o, "--psf", nan_psf.to_str().unwrap()], "nan"),
-        (vec!["simulate", "--in", g, "--out", o, "--psf", neg_psf.to_str().unwrap()], "neg"),
-        (vec!["simulate", "--in", g, "--out", o, "--psf", zero_psf.to_str().unwrap()], "zero"),
-        (vec!["simulate", "--in", g, "--out", o, "--gamma", "0"], "gamma"),
-        (vec!["simulate", "--in", g, "--out", o, "--bit-depth", "12"], "bit_depth"),
-        (vec!["simulate", "--in", g, "--out", o, "--noise-b", "NaN"], "noise.b"),
+        (
+            vec!["simulate", "--in", "/no/such.png", "--out", o],
+            "such.png",
+        ),
+        (
+            vec!["simulate", "--in", corrupt.to_str().unwrap(), "--out", o],
+            "corrupt.png",
+        ),
+        (
+            vec![
+                "simulate",
+                "--in",
+                g,
+                "--out",
+                o,
+                "--psf",
+                nan_psf.to_str().unwrap(),
+            ],
+            "nan",
+        ),
+        (
+            vec![
+                "simulate",
+                "--in",
+                g,
+                "--out",
+                o,
+                "--psf",
+                neg_psf.to_str().unwrap(),
+            ],
+            "neg",
+        ),
+        (
+            vec![
+                "simulate",
+                "--in",
+                g,
+                "--out",
+                o,
+                "--psf",
+                zero_psf.to_str().unwrap(),
+            ],
+            "zero",
+        ),
+        (
+            vec!["simulate", "--in", g, "--out", o, "--gamma", "0"],
+            "gamma",
+        ),
+        (
+            vec!["simulate", "--in", g, "--out", o, "--bit-depth", "12"],
+            "bit_depth",
+        ),
+        (
+            vec!["simulate", "--in", g, "--out", o, "--noise-b", "NaN"],
+            "noise.b",
+        ),
     ] {
         let err = failed(&pins(&args, None));
         assert!(err.to_lowercase().contains(word), "{args:?}: {err}");
         assert!(!img_out.exists(), "{args:?} left an output file");
     }
     // And it works on good input.
-    ok(&pins(&["simulate", "--in", g, "--out", o, "--bit-depth", "16", "--seed", "3"], None));
+    ok(&pins(
+        &[
+            "simulate",
+            "--in",
+            g,
+            "--out",
+            o,
+            "--bit-depth",
+            "16",
+            "--seed",
+            "3",
+        ],
+        None,
+    ));
     assert!(img_out.exists());
 }
 
@@ -222,15 +429,40 @@ fn mismatched_pair_in_a_dataset_is_an_error() {
     let src = tmp.path().join("pairs");
     fs::create_dir_all(&src).unwrap();
     use pins::io::{BitDepth, write_image};
-    write_image(&src.join("00001_img1.png"), &pins::Image::filled(3, 16, 16, 0.5), BitDepth::Eight).unwrap();
-    write_image(&src.join("00001_img2.png"), &pins::Image::filled(3, 16, 20, 0.5), BitDepth::Eight).unwrap();
+    write_image(
+        &src.join("00001_img1.png"),
+        &pins::Image::filled(3, 16, 16, 0.5),
+        BitDepth::Eight,
+    )
+    .unwrap();
+    write_image(
+        &src.join("00001_img2.png"),
+        &pins::Image::filled(3, 16, 20, 0.5),
+        BitDepth::Eight,
+    )
+    .unwrap();
     let cfg = write_config(
         tmp.path(),
         "ds.json",
-        &format!(r#"{{"scene": {{"kind": "dataset", "path": {:?}}}}}"#, src.to_str().unwrap()),
+        &format!(
+            r#"{{"scene": {{"kind": "dataset", "path": {:?}}}}}"#,
+            src.to_str().unwrap()
+        ),
     );
     let out = tmp.path().join("out");
-    let err = failed(&pins(&["generate", "--config", cfg.to_str().unwrap(), "--out", out.to_str().unwrap()], None));
-    assert!(err.contains("00001_img1.png") && err.contains("00001_img2.png"), "{err}");
+    let err = failed(&pins(
+        &[
+            "generate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        None,
+    ));
+    assert!(
+        err.contains("00001_img1.png") && err.contains("00001_img2.png"),
+        "{err}"
+    );
     assert!(!out.join("00000_img1.png").exists());
 }

@@ -4,7 +4,10 @@
 use std::process::Command;
 
 fn pins(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pins")).args(args).output().expect("run pins")
+    Command::new(env!("CARGO_BIN_EXE_pins"))
+        .args(args)
+        .output()
+        .expect("run pins")
 }
 
 #[test]
@@ -21,10 +24,30 @@ fn dof_json_reproduces_table_s1() {
 
 #[test]
 fn stereo_rejects_rays_that_do_not_meet() {
-    let out = pins(&["optics", "stereo", "--x1-mm", "0.1", "--x2-mm", "0.1", "--baseline-m", "0.1"]);
+    let out = pins(&[
+        "optics",
+        "stereo",
+        "--x1-mm",
+        "0.1",
+        "--x2-mm",
+        "0.1",
+        "--baseline-m",
+        "0.1",
+    ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("do not meet"));
-    let out = pins(&["optics", "stereo", "--x1-mm", "-2", "--x2-mm", "-0.1", "--baseline-m", "0.1", "--profile", "quadratic"]);
+    let out = pins(&[
+        "optics",
+        "stereo",
+        "--x1-mm",
+        "-2",
+        "--x2-mm",
+        "-0.1",
+        "--baseline-m",
+        "0.1",
+        "--profile",
+        "quadratic",
+    ]);
     assert!(!out.status.success());
 }
 
@@ -36,11 +59,33 @@ fn compare_prints_ssim_mae_mse() {
     pins::io::write_image(&a, &img, pins::io::BitDepth::Eight).unwrap();
     img.set(1, 10, 10, 0.9);
     pins::io::write_image(&b, &img, pins::io::BitDepth::Eight).unwrap();
-    let out = pins(&["compare", a.to_str().unwrap(), b.to_str().unwrap(), "--json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = pins(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(v["ssim"].as_f64().unwrap() < 1.0 && v["mae"].as_f64().unwrap() > 0.0 && v["mse"].as_f64().unwrap() > 0.0);
+    assert!(
+        v["ssim"].as_f64().unwrap() < 1.0
+            && v["mae"].as_f64().unwrap() > 0.0
+            && v["mse"].as_f64().unwrap() > 0.0
+    );
     let c = d.path().join("c.png");
-    pins::io::write_image(&c, &pins::Image::filled(3, 30, 32, 0.5), pins::io::BitDepth::Eight).unwrap();
-    assert!(!pins(&["compare", a.to_str().unwrap(), c.to_str().unwrap()]).status.success());
+    pins::io::write_image(
+        &c,
+        &pins::Image::filled(3, 30, 32, 0.5),
+        pins::io::BitDepth::Eight,
+    )
+    .unwrap();
+    assert!(
+        !pins(&["compare", a.to_str().unwrap(), c.to_str().unwrap()])
+            .status
+            .success()
+    );
 }

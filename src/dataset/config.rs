@@ -81,23 +81,36 @@ impl GeneratorConfig {
         {
             *p = base.join(&*p);
         }
-        if !matches!(cfg.camera.psf.as_str(), "default" | "delta") && Path::new(&cfg.camera.psf).is_relative() {
+        if !matches!(cfg.camera.psf.as_str(), "default" | "delta")
+            && Path::new(&cfg.camera.psf).is_relative()
+        {
             cfg.camera.psf = base.join(&cfg.camera.psf).to_string_lossy().into_owned();
         }
-        cfg.validate().map_err(|e| Error::Config { path: path.to_path_buf(), reason: e.to_string() })?;
+        cfg.validate().map_err(|e| Error::Config {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
         Ok(cfg)
     }
 
     /// Checks every section.
     pub fn validate(&self) -> Result<()> {
         if self.count == 0 || self.count > 10_000_000 {
-            return Err(Error::invalid("count", format!("must be 1..=10000000, got {}", self.count)));
+            return Err(Error::invalid(
+                "count",
+                format!("must be 1..=10000000, got {}", self.count),
+            ));
         }
         self.camera.validate()?;
         match &self.scene {
             SceneSpec::Chairs(c) => c.validate(),
-            SceneSpec::Rocket { channels, .. } | SceneSpec::Disc { channels, .. } if *channels != 1 && *channels != 3 => {
-                Err(Error::invalid("scene.channels", format!("must be 1 or 3, got {channels}")))
+            SceneSpec::Rocket { channels, .. } | SceneSpec::Disc { channels, .. }
+                if *channels != 1 && *channels != 3 =>
+            {
+                Err(Error::invalid(
+                    "scene.channels",
+                    format!("must be 1 or 3, got {channels}"),
+                ))
             }
             SceneSpec::Disc { radius, .. } => crate::scene::patterns::disc(*radius, 1).map(|_| ()),
             _ => Ok(()),
@@ -117,14 +130,19 @@ mod tests {
         .unwrap();
         cfg.validate().unwrap();
         assert_eq!(cfg.camera.gamma, 1.5);
-        assert!(matches!(cfg.scene, SceneSpec::Chairs(ref c) if c.width == 64 && c.sprites == [3, 8]));
+        assert!(
+            matches!(cfg.scene, SceneSpec::Chairs(ref c) if c.width == 64 && c.sprites == [3, 8])
+        );
         for bad in [
             r#"{"cout": 3}"#,
             r#"{"scene": {"kind": "chairs", "widht": 64}}"#,
             r#"{"scene": {"kind": "teapot"}}"#,
             r#"{"camera": {"noise": {"c": 1}}}"#,
         ] {
-            assert!(serde_json::from_str::<GeneratorConfig>(bad).is_err(), "{bad}");
+            assert!(
+                serde_json::from_str::<GeneratorConfig>(bad).is_err(),
+                "{bad}"
+            );
         }
         let zero: GeneratorConfig = serde_json::from_str(r#"{"count": 0}"#).unwrap();
         assert!(zero.validate().is_err());

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::config::{GeneratorConfig, SceneSpec};
-use super::manifest::{Manifest, SampleMeta, FlowStats};
+use super::manifest::{FlowStats, Manifest, SampleMeta};
 use crate::error::{Error, Result};
 use crate::imaging::{Camera, psf_source};
 use crate::io::{self, BitDepth};
@@ -32,9 +32,17 @@ impl Shard {
 
     /// Parses `K/N` with `0 <= K < N`.
     pub fn parse(s: &str) -> Result<Self> {
-        let bad = || Error::invalid("--shard", format!("expected K/N with 0 <= K < N, got {s:?}"));
+        let bad = || {
+            Error::invalid(
+                "--shard",
+                format!("expected K/N with 0 <= K < N, got {s:?}"),
+            )
+        };
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
-        let (k, n) = (k.trim().parse::<usize>().map_err(|_| bad())?, n.trim().parse::<usize>().map_err(|_| bad())?);
+        let (k, n) = (
+            k.trim().parse::<usize>().map_err(|_| bad())?,
+            n.trim().parse::<usize>().map_err(|_| bad())?,
+        );
         if n == 0 || k >= n {
             return Err(bad());
         }
@@ -88,7 +96,13 @@ impl Generator {
             }
             _ => (Vec::new(), config.count),
         };
-        Ok(Self { config, camera, psf_description, pairs, total })
+        Ok(Self {
+            config,
+            camera,
+            psf_description,
+            pairs,
+            total,
+        })
     }
 
     /// Number of samples the run will hold when complete.
@@ -108,9 +122,18 @@ impl Generator {
 
     fn render(&self, index: usize, seed: u64) -> Result<Rendered> {
         let layered = |scene: crate::scene::LayeredScene| -> Result<Rendered> {
-            let flow = if scene.is_static() { None } else { Some(scene.flow()?) };
+            let flow = if scene.is_static() {
+                None
+            } else {
+                Some(scene.flow()?)
+            };
             let clean = [scene.render(0)?, scene.render(1)?];
-            Ok(Rendered { clean, flow, layers: Some(scene.records()), source: None })
+            Ok(Rendered {
+                clean,
+                flow,
+                layers: Some(scene.records()),
+                source: None,
+            })
         };
         match &self.config.scene {
             SceneSpec::Chairs(c) => layered(c.build(seed)?),
@@ -133,7 +156,12 @@ impl Generator {
                     }
                     None => None,
                 };
-                Ok(Rendered { clean: [a, b], flow, layers: None, source: Some(pair.name.clone()) })
+                Ok(Rendered {
+                    clean: [a, b],
+                    flow,
+                    layers: None,
+                    source: Some(pair.name.clone()),
+                })
             }
         }
     }
@@ -146,7 +174,11 @@ impl Generator {
         }
         let seed = self.sample_seed(index);
         let r = self.render(index, seed)?;
-        let depth = if self.config.camera.bit_depth == 16 { BitDepth::Sixteen } else { BitDepth::Eight };
+        let depth = if self.config.camera.bit_depth == 16 {
+            BitDepth::Sixteen
+        } else {
+            BitDepth::Eight
+        };
         let mut files = Vec::new();
         for (k, clean) in r.clean.iter().enumerate() {
             let purpose = [rng::purpose::NOISE_FRAME1, rng::purpose::NOISE_FRAME2][k];
@@ -232,7 +264,13 @@ impl Generator {
             manifest.write(&dir.join("manifest.json"))?;
         }
         let generated = generated.into_inner();
-        Ok(RunSummary { generated, kept: range.len() - generated, complete, total: self.total, manifest_written })
+        Ok(RunSummary {
+            generated,
+            kept: range.len() - generated,
+            complete,
+            total: self.total,
+            manifest_written,
+        })
     }
 
     /// Records this run's config in `dir/config.json`, refusing a folder made with another.
@@ -242,7 +280,9 @@ impl Generator {
             .map_err(|e| Error::invalid("config", e.to_string()))?;
         if path.exists() {
             let old = fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-            let same = serde_json::from_str::<GeneratorConfig>(&old).map(|c| c == self.config).unwrap_or(false);
+            let same = serde_json::from_str::<GeneratorConfig>(&old)
+                .map(|c| c == self.config)
+                .unwrap_or(false);
             if !same {
                 return Err(Error::invalid(
                     "output folder",
@@ -280,9 +320,14 @@ mod tests {
         assert!(Shard::parse("2/2").is_err());
         assert!(Shard::parse("x").is_err());
         let total = 10;
-        let mut all: Vec<usize> = (0..3).flat_map(|k| Shard { index: k, count: 3 }.range(total)).collect();
+        let mut all: Vec<usize> = (0..3)
+            .flat_map(|k| Shard { index: k, count: 3 }.range(total))
+            .collect();
         all.sort();
         assert_eq!(all, (0..total).collect::<Vec<_>>());
-        assert_eq!(Shard::parse(" 1 / 4").unwrap(), Shard { index: 1, count: 4 });
+        assert_eq!(
+            Shard::parse(" 1 / 4").unwrap(),
+            Shard { index: 1, count: 4 }
+        );
     }
 }

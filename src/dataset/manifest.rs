@@ -67,7 +67,8 @@ impl SampleMeta {
 
     /// Writes the sidecar atomically; it is written last, so its presence marks completion.
     pub fn write(&self, path: &Path) -> Result<()> {
-        let text = serde_json::to_string(self).map_err(|e| Error::invalid("sample metadata", e.to_string()))?;
+        let text = serde_json::to_string(self)
+            .map_err(|e| Error::invalid("sample metadata", e.to_string()))?;
         io::write_bytes_atomic(path, text.as_bytes())
     }
 
@@ -75,7 +76,10 @@ impl SampleMeta {
     pub fn read_complete(path: &Path, dir: &Path) -> Option<SampleMeta> {
         let text = std::fs::read_to_string(path).ok()?;
         let meta: SampleMeta = serde_json::from_str(&text).ok()?;
-        meta.files.iter().all(|f| dir.join(f).is_file()).then_some(meta)
+        meta.files
+            .iter()
+            .all(|f| dir.join(f).is_file())
+            .then_some(meta)
     }
 }
 
@@ -92,7 +96,8 @@ pub struct Manifest {
 
 impl Manifest {
     pub fn write(&self, path: &Path) -> Result<()> {
-        let text = serde_json::to_string_pretty(self).map_err(|e| Error::invalid("manifest", e.to_string()))?;
+        let text = serde_json::to_string_pretty(self)
+            .map_err(|e| Error::invalid("manifest", e.to_string()))?;
         io::write_bytes_atomic(path, text.as_bytes())
     }
 

@@ -25,11 +25,20 @@ impl FlowDataset {
     /// Opens `root` (a `pins generate` folder or any FlyingChairs, Sintel, Middlebury or KITTI
     /// layout) and keeps the pairs that have flow. Errors when none has.
     pub fn open(root: &Path) -> Result<Self> {
-        let pairs: Vec<PairPaths> = discover(root, Layout::Auto)?.into_iter().filter(|p| p.flow.is_some()).collect();
+        let pairs: Vec<PairPaths> = discover(root, Layout::Auto)?
+            .into_iter()
+            .filter(|p| p.flow.is_some())
+            .collect();
         if pairs.is_empty() {
-            return Err(Error::invalid("dataset", format!("{}: no image pair has ground-truth flow", root.display())));
+            return Err(Error::invalid(
+                "dataset",
+                format!("{}: no image pair has ground-truth flow", root.display()),
+            ));
         }
-        Ok(Self { root: root.to_path_buf(), pairs })
+        Ok(Self {
+            root: root.to_path_buf(),
+            pairs,
+        })
     }
 
     /// Splits off the last `fraction` of the pairs (at least one, and at least one left for
@@ -38,10 +47,20 @@ impl FlowDataset {
         let n = self.pairs.len();
         let val = ((n as f64 * fraction).round() as usize).clamp(1, n.saturating_sub(1).max(1));
         let cut = n - val.min(n);
-        let train = if cut == 0 { self.pairs.clone() } else { self.pairs[..cut].to_vec() };
+        let train = if cut == 0 {
+            self.pairs.clone()
+        } else {
+            self.pairs[..cut].to_vec()
+        };
         (
-            FlowDataset { root: self.root.clone(), pairs: train },
-            FlowDataset { root: self.root.clone(), pairs: self.pairs[cut..].to_vec() },
+            FlowDataset {
+                root: self.root.clone(),
+                pairs: train,
+            },
+            FlowDataset {
+                root: self.root.clone(),
+                pairs: self.pairs[cut..].to_vec(),
+            },
         )
     }
 
@@ -49,7 +68,10 @@ impl FlowDataset {
     pub fn load(&self, i: usize) -> Result<(Image, Image, Flow)> {
         let p = &self.pairs[i];
         let (a, b) = io::read_image_pair(&p.img1, &p.img2)?;
-        let flow_path = p.flow.as_ref().ok_or_else(|| Error::invalid("pair", format!("{} has no flow", p.name)))?;
+        let flow_path = p
+            .flow
+            .as_ref()
+            .ok_or_else(|| Error::invalid("pair", format!("{} has no flow", p.name)))?;
         let flow = io::read_flow(flow_path)?;
         if (flow.height(), flow.width()) != (a.height(), a.width()) {
             return Err(Error::shape(
@@ -67,8 +89,10 @@ pub fn to_rgb(img: Image) -> Image {
     let (c, h, w) = img.shape();
     match c {
         3 => img,
-        1 => Image::from_vec(3, h, w, [img.plane(0), img.plane(0), img.plane(0)].concat()).unwrap_or(img),
-        _ => Image::from_vec(3, h, w, [img.plane(0), img.plane(1), img.plane(2)].concat()).unwrap_or(img),
+        1 => Image::from_vec(3, h, w, [img.plane(0), img.plane(0), img.plane(0)].concat())
+            .unwrap_or(img),
+        _ => Image::from_vec(3, h, w, [img.plane(0), img.plane(1), img.plane(2)].concat())
+            .unwrap_or(img),
     }
 }
 
@@ -90,7 +114,14 @@ pub struct AugmentConfig {
 
 impl Default for AugmentConfig {
     fn default() -> Self {
-        Self { flip_horizontal: 0.5, flip_vertical: 0.1, brightness: [0.7, 1.3], contrast: [0.7, 1.3], gamma: [0.8, 1.25], asymmetric: 0.2 }
+        Self {
+            flip_horizontal: 0.5,
+            flip_vertical: 0.1,
+            brightness: [0.7, 1.3],
+            contrast: [0.7, 1.3],
+            gamma: [0.8, 1.25],
+            asymmetric: 0.2,
+        }
     }
 }
 
@@ -104,29 +135,58 @@ pub struct Example {
 
 /// Crops `(h, w)` at a random place and augments; flips keep the flow consistent (a horizontal
 /// flip negates u, a vertical one negates v). Images smaller than the crop are an error.
-pub fn make_example(a: &Image, b: &Image, flow: &Flow, crop: (usize, usize), aug: &AugmentConfig, r: &mut rng::Rng) -> Result<Example> {
+pub fn make_example(
+    a: &Image,
+    b: &Image,
+    flow: &Flow,
+    crop: (usize, usize),
+    aug: &AugmentConfig,
+    r: &mut rng::Rng,
+) -> Result<Example> {
     let (_, h, w) = a.shape();
     let (ch, cw) = crop;
     if h < ch || w < cw {
-        return Err(Error::invalid("crop", format!("{cw}x{ch} is larger than a {w}x{h} training image")));
+        return Err(Error::invalid(
+            "crop",
+            format!("{cw}x{ch} is larger than a {w}x{h} training image"),
+        ));
     }
     let (y0, x0) = (r.random_range(0..=h - ch), r.random_range(0..=w - cw));
     let flip_h = r.random_bool(aug.flip_horizontal.clamp(0.0, 1.0));
     let flip_v = r.random_bool(aug.flip_vertical.clamp(0.0, 1.0));
-    let range = |r: &mut rng::Rng, v: [f32; 2]| if v[0] < v[1] { r.random_range(v[0]..=v[1]) } else { v[0] };
+    let range = |r: &mut rng::Rng, v: [f32; 2]| {
+        if v[0] < v[1] {
+            r.random_range(v[0]..=v[1])
+        } else {
+            v[0]
+        }
+    };
     let bright = range(r, aug.brightness);
     let contrast = range(r, aug.contrast);
     let gamma = range(r, aug.gamma);
-    let extra = if r.random_bool(aug.asymmetric.clamp(0.0, 1.0)) { r.random_range(0.9f32..=1.1) } else { 1.0 };
+    let extra = if r.random_bool(aug.asymmetric.clamp(0.0, 1.0)) {
+        r.random_range(0.9f32..=1.1)
+    } else {
+        1.0
+    };
     let src = |y: usize, x: usize| -> (usize, usize) {
-        (y0 + if flip_v { ch - 1 - y } else { y }, x0 + if flip_h { cw - 1 - x } else { x })
+        (
+            y0 + if flip_v { ch - 1 - y } else { y },
+            x0 + if flip_h { cw - 1 - x } else { x },
+        )
     };
     let n = ch * cw;
-    let mut out = Example { img1: vec![0.0; 3 * n], img2: vec![0.0; 3 * n], flow: vec![0.0; 2 * n], valid: vec![0.0; n] };
+    let mut out = Example {
+        img1: vec![0.0; 3 * n],
+        img2: vec![0.0; 3 * n],
+        flow: vec![0.0; 2 * n],
+        valid: vec![0.0; n],
+    };
     for (img, dst, k) in [(a, &mut out.img1, 1.0f32), (b, &mut out.img2, extra)] {
         for c in 0..3 {
             let plane = img.plane(c);
-            let mean = plane.iter().map(|&v| v as f64).sum::<f64>() as f32 / plane.len().max(1) as f32;
+            let mean =
+                plane.iter().map(|&v| v as f64).sum::<f64>() as f32 / plane.len().max(1) as f32;
             for y in 0..ch {
                 for x in 0..cw {
                     let (sy, sx) = src(y, x);
@@ -171,8 +231,15 @@ impl Batch {
             f.extend(e.flow);
             v.extend(e.valid);
         }
-        let t = |data: Vec<f32>, c: usize| Tensor::<4>::from_data(TensorData::new(data, [b, c, h, w]), device);
-        Batch { img1: t(i1, 3), img2: t(i2, 3), flow: t(f, 2), valid: t(v, 1) }
+        let t = |data: Vec<f32>, c: usize| {
+            Tensor::<4>::from_data(TensorData::new(data, [b, c, h, w]), device)
+        };
+        Batch {
+            img1: t(i1, 3),
+            img2: t(i2, 3),
+            flow: t(f, 2),
+            valid: t(v, 1),
+        }
     }
 }
 
@@ -195,13 +262,24 @@ mod tests {
         let mut flow = Flow::zeros(h, w);
         flow.set(2, 3, 2.0, -1.0);
         flow.set(0, 0, f32::NAN, 0.0);
-        let aug = AugmentConfig { flip_horizontal: 1.0, flip_vertical: 1.0, brightness: [1.0, 1.0], contrast: [1.0, 1.0], gamma: [1.0, 1.0], asymmetric: 0.0 };
+        let aug = AugmentConfig {
+            flip_horizontal: 1.0,
+            flip_vertical: 1.0,
+            brightness: [1.0, 1.0],
+            contrast: [1.0, 1.0],
+            gamma: [1.0, 1.0],
+            asymmetric: 0.0,
+        };
         let mut r = rng::stream(1, &[0]);
         let e = make_example(&a, &a, &flow, (h, w), &aug, &mut r).unwrap();
         let (y, x) = (h - 1 - 2, w - 1 - 3);
         assert_eq!(e.img1[y * w + x], 1.0);
         assert_eq!((e.flow[y * w + x], e.flow[h * w + y * w + x]), (-2.0, 1.0));
-        assert_eq!(e.valid[(h - 1) * w + (w - 1)], 0.0, "unknown flow is invalid");
+        assert_eq!(
+            e.valid[(h - 1) * w + (w - 1)],
+            0.0,
+            "unknown flow is invalid"
+        );
         assert!(make_example(&a, &a, &flow, (16, 16), &aug, &mut r).is_err());
     }
 }

@@ -11,14 +11,23 @@ pub fn select(name: &str) -> Result<Device> {
         "cpu" | "flex" => Ok(Device::flex()),
         #[cfg(feature = "cuda")]
         n if n == "cuda" || n.starts_with("cuda:") => {
-            let index: usize = n.strip_prefix("cuda:").map(|i| i.parse()).transpose().map_err(|_| Error::invalid("--device", format!("{n:?}: expected cuda:N")))?.unwrap_or(0);
+            let index: usize = n
+                .strip_prefix("cuda:")
+                .map(|i| i.parse())
+                .transpose()
+                .map_err(|_| Error::invalid("--device", format!("{n:?}: expected cuda:N")))?
+                .unwrap_or(0);
             Ok(Device::cuda(index))
         }
         other => Err(Error::invalid(
             "--device",
             format!(
                 "{other:?} is not available in this build; use cpu{}",
-                if cfg!(feature = "cuda") { " or cuda[:N]" } else { " (GPU backends need e.g. `cargo build --features cuda`)" }
+                if cfg!(feature = "cuda") {
+                    " or cuda[:N]"
+                } else {
+                    " (GPU backends need e.g. `cargo build --features cuda`)"
+                }
             ),
         )),
     }

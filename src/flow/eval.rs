@@ -66,11 +66,19 @@ pub fn evaluate_dataset(
 }
 
 /// Evaluates `model` on every pair of `data` for each count in `iters`, timing each pair.
-pub fn evaluate(model: &Mms, config: &MmsConfig, data: &FlowDataset, iters: &[usize], device: &Device) -> Result<EvalReport> {
+pub fn evaluate(
+    model: &Mms,
+    config: &MmsConfig,
+    data: &FlowDataset,
+    iters: &[usize],
+    device: &Device,
+) -> Result<EvalReport> {
     if iters.is_empty() {
         return Err(Error::invalid("--iters", "empty list"));
     }
-    let pairs: Vec<_> = (0..data.pairs.len()).map(|i| data.load(i)).collect::<Result<_>>()?;
+    let pairs: Vec<_> = (0..data.pairs.len())
+        .map(|i| data.load(i))
+        .collect::<Result<_>>()?;
     let mut zero = FlowErrorSums::default();
     for (_, _, gt) in &pairs {
         zero.add(&Flow::zeros(gt.height(), gt.width()), gt, None)?;
@@ -90,7 +98,15 @@ pub fn evaluate(model: &Mms, config: &MmsConfig, data: &FlowDataset, iters: &[us
             sums.add(&pred, gt, None)?;
         }
         let s = sums.scores();
-        rows.push(EvalRow { iters: n, epe: s.epe, ae_deg: s.ae_deg, px1: s.px1, px3: s.px3, px5: s.px5, ms_per_pair: 1e3 * seconds / pairs.len() as f64 });
+        rows.push(EvalRow {
+            iters: n,
+            epe: s.epe,
+            ae_deg: s.ae_deg,
+            px1: s.px1,
+            px3: s.px3,
+            px5: s.px5,
+            ms_per_pair: 1e3 * seconds / pairs.len() as f64,
+        });
     }
     let z = zero.scores();
     Ok(EvalReport {
@@ -100,7 +116,13 @@ pub fn evaluate(model: &Mms, config: &MmsConfig, data: &FlowDataset, iters: &[us
         pairs: pairs.len(),
         pixels: z.pixels,
         rows,
-        zero_flow: ZeroFlow { epe: z.epe, ae_deg: z.ae_deg, px1: z.px1, px3: z.px3, px5: z.px5 },
+        zero_flow: ZeroFlow {
+            epe: z.epe,
+            ae_deg: z.ae_deg,
+            px1: z.px1,
+            px3: z.px3,
+            px5: z.px5,
+        },
     })
 }
 
@@ -112,10 +134,16 @@ impl EvalReport {
             self.model, self.parameters, self.pairs, self.data
         );
         for r in &self.rows {
-            s += &format!("| {} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.0} |\n", r.iters, r.epe, r.ae_deg, r.px1, r.px3, r.px5, r.ms_per_pair);
+            s += &format!(
+                "| {} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.0} |\n",
+                r.iters, r.epe, r.ae_deg, r.px1, r.px3, r.px5, r.ms_per_pair
+            );
         }
         let z = &self.zero_flow;
-        s += &format!("| zero flow | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | 0 |\n", z.epe, z.ae_deg, z.px1, z.px3, z.px5);
+        s += &format!(
+            "| zero flow | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | 0 |\n",
+            z.epe, z.ae_deg, z.px1, z.px3, z.px5
+        );
         s
     }
 }

@@ -31,11 +31,19 @@ impl Predictor {
     /// Loads a weights file onto `device`.
     pub fn load_on(path: &str, device: Device) -> Result<Self> {
         let (model, config) = if path == "default" {
-            weights::from_bytes(DEFAULT_WEIGHTS, Path::new("datasets/weights/mms-small.safetensors"), &device)?
+            weights::from_bytes(
+                DEFAULT_WEIGHTS,
+                Path::new("datasets/weights/mms-small.safetensors"),
+                &device,
+            )?
         } else {
             weights::load(Path::new(path), &device)?
         };
-        Ok(Self { model, config, device })
+        Ok(Self {
+            model,
+            config,
+            device,
+        })
     }
 
     /// The flow from `img1` to `img2` after `iters` refinements.
@@ -45,7 +53,14 @@ impl Predictor {
 }
 
 /// Runs `model` on one pair. Images must have the same size; grey images are repeated to RGB.
-pub fn predict_flow(model: &Mms, config: &MmsConfig, img1: &Image, img2: &Image, iters: usize, device: &Device) -> Result<Flow> {
+pub fn predict_flow(
+    model: &Mms,
+    config: &MmsConfig,
+    img1: &Image,
+    img2: &Image,
+    iters: usize,
+    device: &Device,
+) -> Result<Flow> {
     if (img1.height(), img1.width()) != (img2.height(), img2.width()) {
         return Err(Error::shape(
             "second image",
@@ -54,7 +69,10 @@ pub fn predict_flow(model: &Mms, config: &MmsConfig, img1: &Image, img2: &Image,
         ));
     }
     if iters == 0 || iters > 256 {
-        return Err(Error::invalid("--iters", format!("must be 1..=256, got {iters}")));
+        return Err(Error::invalid(
+            "--iters",
+            format!("must be 1..=256, got {iters}"),
+        ));
     }
     img1.check_finite("first image")?;
     img2.check_finite("second image")?;
@@ -62,12 +80,21 @@ pub fn predict_flow(model: &Mms, config: &MmsConfig, img1: &Image, img2: &Image,
     let padder = InputPadder::new(h, w, config.min_side());
     let a = padder.pad(image_tensor(img1, device));
     let b = padder.pad(image_tensor(img2, device));
-    let pred = model.forward(a, b, iters, false).pop().ok_or_else(|| Error::invalid("model", "no prediction"))?;
+    let pred = model
+        .forward(a, b, iters, false)
+        .pop()
+        .ok_or_else(|| Error::invalid("model", "no prediction"))?;
     let flow = padder.unpad(pred); // [1, 2, H, W]
-    let data: Vec<f32> = flow.into_data().try_to_vec::<f32>().map_err(|e| Error::invalid("model output", format!("{e:?}")))?;
+    let data: Vec<f32> = flow
+        .into_data()
+        .try_to_vec::<f32>()
+        .map_err(|e| Error::invalid("model output", format!("{e:?}")))?;
     let out = Flow::from_vec(h, w, data)?;
     if out.data().iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid("model output", "the network produced non-finite flow"));
+        return Err(Error::invalid(
+            "model output",
+            "the network produced non-finite flow",
+        ));
     }
     Ok(out)
 }

@@ -13,14 +13,21 @@ pub const MAX_FLOW: f32 = 400.0;
 /// # Shapes
 /// `predictions`: N × `[B, 2, H, W]`, `gt`: `[B, 2, H, W]`, `valid`: `[B, 1, H, W]` (1 or 0)
 /// → scalar `[1]`: Σ_i ρ^(N−i) · mean(valid · |f_i − f_gt|).
-pub fn sequence_loss(predictions: &[Tensor<4>], gt: Tensor<4>, valid: Tensor<4>, rho: f32) -> Tensor<1> {
+pub fn sequence_loss(
+    predictions: &[Tensor<4>],
+    gt: Tensor<4>,
+    valid: Tensor<4>,
+    rho: f32,
+) -> Tensor<1> {
     let n = predictions.len();
     let mag = gt.clone().powi_scalar(2).sum_dim(1).sqrt(); // [B, 1, H, W]
     let valid = valid * mag.lower_elem(MAX_FLOW).float();
     let mut total: Option<Tensor<1>> = None;
     for (i, pred) in predictions.iter().enumerate() {
         let weight = rho.powi((n - 1 - i) as i32);
-        let term = ((pred.clone() - gt.clone()).abs() * valid.clone()).mean().mul_scalar(weight);
+        let term = ((pred.clone() - gt.clone()).abs() * valid.clone())
+            .mean()
+            .mul_scalar(weight);
         total = Some(match total {
             Some(t) => t + term,
             None => term,
@@ -51,12 +58,16 @@ mod tests {
         let valid = Tensor::<4>::ones([1, 1, 4, 4], &dev);
         let good = Tensor::<4>::zeros([1, 2, 4, 4], &dev);
         let bad = Tensor::<4>::ones([1, 2, 4, 4], &dev);
-        let early_bad: f32 = sequence_loss(&[bad.clone(), good.clone()], gt.clone(), valid.clone(), 0.8).into_scalar();
-        let late_bad: f32 = sequence_loss(&[good, bad], gt.clone(), valid.clone(), 0.8).into_scalar();
+        let early_bad: f32 =
+            sequence_loss(&[bad.clone(), good.clone()], gt.clone(), valid.clone(), 0.8)
+                .into_scalar();
+        let late_bad: f32 =
+            sequence_loss(&[good, bad], gt.clone(), valid.clone(), 0.8).into_scalar();
         assert!((early_bad - 0.8).abs() < 1e-6 && (late_bad - 1.0).abs() < 1e-6);
         // Absurd ground truth is ignored.
         let huge = Tensor::<4>::ones([1, 2, 4, 4], &dev).mul_scalar(1e4);
-        let l: f32 = sequence_loss(&[Tensor::zeros([1, 2, 4, 4], &dev)], huge, valid, 0.8).into_scalar();
+        let l: f32 =
+            sequence_loss(&[Tensor::zeros([1, 2, 4, 4], &dev)], huge, valid, 0.8).into_scalar();
         assert_eq!(l, 0.0);
     }
 }

@@ -67,7 +67,10 @@ impl FlowErrorSums {
             }
             let (u, v, ug, vg) = (pu[i] as f64, pv[i] as f64, gu[i] as f64, gv[i] as f64);
             if !(u.is_finite() && v.is_finite()) {
-                return Err(Error::invalid("predicted flow", format!("non-finite vector at pixel {i}")));
+                return Err(Error::invalid(
+                    "predicted flow",
+                    format!("non-finite vector at pixel {i}"),
+                ));
             }
             let e = endpoint_error(u, v, ug, vg);
             self.pixels += 1;

@@ -18,7 +18,11 @@ fn colour_wheel() -> Vec<[f32; 3]> {
     for (n, a, b) in segments {
         for i in 0..n {
             let t = i as f32 / n as f32;
-            wheel.push([a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t]);
+            wheel.push([
+                a[0] + (b[0] - a[0]) * t,
+                a[1] + (b[1] - a[1]) * t,
+                a[2] + (b[2] - a[2]) * t,
+            ]);
         }
     }
     wheel
@@ -39,7 +43,11 @@ fn vector_colour(wheel: &[[f32; 3]], u: f32, v: f32) -> [f32; 3] {
     let mut rgb = [0.0; 3];
     for c in 0..3 {
         let col = (1.0 - f) * wheel[k0][c] + f * wheel[k1][c];
-        rgb[c] = if rad <= 1.0 { 1.0 - rad * (1.0 - col) } else { col * 0.75 };
+        rgb[c] = if rad <= 1.0 {
+            1.0 - rad * (1.0 - col)
+        } else {
+            col * 0.75
+        };
     }
     rgb
 }

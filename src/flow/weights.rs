@@ -29,10 +29,15 @@ pub fn parameter_count<M: Module>(module: &M) -> usize {
 
 /// Serialises `model` and its config to safetensors bytes.
 pub fn to_bytes(model: &Mms, config: &MmsConfig) -> Result<Vec<u8>> {
-    let json = serde_json::to_string(config).map_err(|e| Error::invalid("model config", e.to_string()))?;
+    let json =
+        serde_json::to_string(config).map_err(|e| Error::invalid("model config", e.to_string()))?;
     let mut store = SafetensorsStore::from_bytes(None).metadata(CONFIG_KEY, json);
-    model.save_into(&mut store).map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))?;
-    store.get_bytes().map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))
+    model
+        .save_into(&mut store)
+        .map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))?;
+    store
+        .get_bytes()
+        .map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))
 }
 
 /// Writes `model` and its config to `path` atomically.
@@ -48,15 +53,20 @@ pub fn read_config(bytes: &[u8], what: &Path) -> Result<MmsConfig> {
     }
     let n = u64::from_le_bytes(bytes[..8].try_into().map_err(|_| bad("header".into()))?) as usize;
     if n > 100 << 20 || 8 + n > bytes.len() {
-        return Err(bad(format!("header of {n} bytes in a file of {}", bytes.len())));
+        return Err(bad(format!(
+            "header of {n} bytes in a file of {}",
+            bytes.len()
+        )));
     }
-    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + n]).map_err(|e| bad(format!("header JSON: {e}")))?;
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..8 + n]).map_err(|e| bad(format!("header JSON: {e}")))?;
     let json = header
         .get("__metadata__")
         .and_then(|m| m.get(CONFIG_KEY))
         .and_then(|v| v.as_str())
         .ok_or_else(|| bad(format!("no {CONFIG_KEY} in the metadata")))?;
-    let cfg: MmsConfig = serde_json::from_str(json).map_err(|e| bad(format!("model config: {e}")))?;
+    let cfg: MmsConfig =
+        serde_json::from_str(json).map_err(|e| bad(format!("model config: {e}")))?;
     cfg.validate()?;
     Ok(cfg)
 }
@@ -66,8 +76,15 @@ pub fn read_config(bytes: &[u8], what: &Path) -> Result<MmsConfig> {
 pub fn from_bytes(bytes: &[u8], what: &Path, device: &Device) -> Result<(Mms, MmsConfig)> {
     let cfg = read_config(bytes, what)?;
     let mut model = Mms::new(&cfg, device);
-    let mut store = SafetensorsStore::from_bytes(Some(bytes.to_vec())).validate(true).allow_partial(false);
-    let applied = model.load_from(&mut store).map_err(|e| Error::format(what, format!("weights do not fit the {} config: {e}", cfg.name)))?;
+    let mut store = SafetensorsStore::from_bytes(Some(bytes.to_vec()))
+        .validate(true)
+        .allow_partial(false);
+    let applied = model.load_from(&mut store).map_err(|e| {
+        Error::format(
+            what,
+            format!("weights do not fit the {} config: {e}", cfg.name),
+        )
+    })?;
     if !applied.errors.is_empty() || !applied.missing.is_empty() || !applied.unused.is_empty() {
         return Err(Error::format(
             what,

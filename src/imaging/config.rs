@@ -91,7 +91,10 @@ mod tests {
     #[test]
     fn defaults_are_the_papers() {
         let c = CameraConfig::default();
-        assert_eq!((c.brightness, c.gamma, c.noise.a, c.noise.b), (0.8, 1.7, 0.2, 10.0));
+        assert_eq!(
+            (c.brightness, c.gamma, c.noise.a, c.noise.b),
+            (0.8, 1.7, 0.2, 10.0)
+        );
         c.validate().unwrap();
     }
 
@@ -100,7 +103,12 @@ mod tests {
         let err = serde_json::from_str::<CameraConfig>(r#"{"gama": 1.5}"#).unwrap_err();
         assert!(err.to_string().contains("gama"), "{err}");
         let c: CameraConfig = serde_json::from_str(r#"{"gamma": 0}"#).unwrap();
-        assert!(c.validate().unwrap_err().to_string().contains("camera.gamma"));
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("camera.gamma")
+        );
         let c: CameraConfig = serde_json::from_str(r#"{"bit_depth": 12}"#).unwrap();
         assert!(c.validate().is_err());
         let c: CameraConfig = serde_json::from_str(r#"{"noise": {"a": -1}}"#).unwrap();

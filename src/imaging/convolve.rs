@@ -54,7 +54,11 @@ pub fn mirror(i: isize, n: usize) -> usize {
     }
     let period = 2 * (n as isize - 1);
     let m = i.rem_euclid(period);
-    if m >= n as isize { (period - m) as usize } else { m as usize }
+    if m >= n as isize {
+        (period - m) as usize
+    } else {
+        m as usize
+    }
 }
 
 /// The plane `[height, width]` padded by `(ry, rx)` on every side with mirrored samples.
@@ -87,21 +91,23 @@ pub fn convolve_direct(
     let padded = pad_mirror(plane, height, width, kh / 2, kw / 2);
     let wp = width + kw - 1;
     let mut out = vec![0.0f32; height * width];
-    out.par_chunks_mut(width).enumerate().for_each(|(y, out_row)| {
-        for i in 0..kh {
-            let src_row = &padded[(y + kh - 1 - i) * wp..][..wp];
-            let krow = &kernel[i * kw..][..kw];
-            for (j, &k) in krow.iter().enumerate() {
-                if k == 0.0 {
-                    continue;
-                }
-                let src = &src_row[kw - 1 - j..][..width];
-                for (o, &s) in out_row.iter_mut().zip(src) {
-                    *o += k * s;
+    out.par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, out_row)| {
+            for i in 0..kh {
+                let src_row = &padded[(y + kh - 1 - i) * wp..][..wp];
+                let krow = &kernel[i * kw..][..kw];
+                for (j, &k) in krow.iter().enumerate() {
+                    if k == 0.0 {
+                        continue;
+                    }
+                    let src = &src_row[kw - 1 - j..][..width];
+                    for (o, &s) in out_row.iter_mut().zip(src) {
+                        *o += k * s;
+                    }
                 }
             }
-        }
-    });
+        });
     out
 }
 
@@ -220,7 +226,9 @@ mod tests {
     }
 
     fn test_kernel(k: usize) -> Vec<f32> {
-        let mut v: Vec<f32> = (0..k * k).map(|i| ((i * 37 + 11) % 17) as f32 + 1.0).collect();
+        let mut v: Vec<f32> = (0..k * k)
+            .map(|i| ((i * 37 + 11) % 17) as f32 + 1.0)
+            .collect();
         let s: f32 = v.iter().sum();
         v.iter_mut().for_each(|x| *x /= s);
         v
@@ -243,8 +251,14 @@ mod tests {
             let d = convolve_direct(&plane, h, w, &kern, k, k);
             let f = FftConvolver::new(&kern, k, k, h, w).convolve(&plane);
             for i in 0..h * w {
-                assert!((d[i] as f64 - reference[i]).abs() < 1e-5, "direct {h}x{w} k{k}");
-                assert!((f[i] as f64 - reference[i]).abs() < 1e-5, "fft {h}x{w} k{k}");
+                assert!(
+                    (d[i] as f64 - reference[i]).abs() < 1e-5,
+                    "direct {h}x{w} k{k}"
+                );
+                assert!(
+                    (f[i] as f64 - reference[i]).abs() < 1e-5,
+                    "fft {h}x{w} k{k}"
+                );
             }
         }
     }

@@ -151,7 +151,9 @@ mod tests {
     fn round_trip_is_identity() {
         let (r, c) = (30, 50);
         let fft = Fft2::new(r, c);
-        let orig: Vec<f32> = (0..r * c).map(|i| ((i * 7919) % 101) as f32 / 101.0).collect();
+        let orig: Vec<f32> = (0..r * c)
+            .map(|i| ((i * 7919) % 101) as f32 / 101.0)
+            .collect();
         let mut grid = orig.clone();
         let spec = fft.forward(&mut grid);
         assert_eq!(spec.len(), (c / 2 + 1) * r);

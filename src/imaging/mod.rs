@@ -5,8 +5,8 @@ pub mod convolve;
 pub mod fft2;
 pub mod noise;
 pub mod pipeline;
-pub mod similarity;
 pub mod psf_source;
+pub mod similarity;
 pub mod tone;
 pub mod tone_lut;
 

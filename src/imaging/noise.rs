@@ -50,7 +50,10 @@ impl NoiseConfig {
     pub fn validate(&self) -> Result<()> {
         for (name, v) in [("noise.a", self.a), ("noise.b", self.b)] {
             if !v.is_finite() || v < 0.0 {
-                return Err(Error::invalid(name, format!("must be finite and >= 0, got {v}")));
+                return Err(Error::invalid(
+                    name,
+                    format!("must be finite and >= 0, got {v}"),
+                ));
             }
         }
         Ok(())
@@ -77,7 +80,10 @@ impl NoiseConfig {
                 let (ch, y) = (row_index / h, row_index % h);
                 // Xoshiro256++: several times faster than ChaCha for the millions of draws a
                 // frame needs, and statistically sound for simulation.
-                let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(rng::derive(seed, &[rng::purpose::NOISE, ch as u64, y as u64]));
+                let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(rng::derive(
+                    seed,
+                    &[rng::purpose::NOISE, ch as u64, y as u64],
+                ));
                 for v in row.iter_mut() {
                     // The signal cannot be negative; a clamp here keeps the variance valid.
                     let dn = v.max(0.0) * DN_SCALE;
@@ -128,13 +134,20 @@ mod tests {
         for model in [NoiseModel::Gaussian, NoiseModel::PoissonGaussian] {
             for &level in &[0.05f32, 0.5] {
                 let mut im = Image::filled(1, 256, 256, level);
-                let cfg = NoiseConfig { model, a: 0.2, b: 10.0 };
+                let cfg = NoiseConfig {
+                    model,
+                    a: 0.2,
+                    b: 10.0,
+                };
                 cfg.apply(&mut im, 7);
                 let (mean, var) = stats(im.data());
                 let dn = level as f64 * 255.0;
                 let expect_var = (0.2 * dn + 10.0) / (255.0f64 * 255.0);
                 assert!((mean - level as f64).abs() < 3e-4, "{model:?} mean {mean}");
-                assert!((var / expect_var - 1.0).abs() < 0.03, "{model:?} var {var} vs {expect_var}");
+                assert!(
+                    (var / expect_var - 1.0).abs() < 0.03,
+                    "{model:?} var {var} vs {expect_var}"
+                );
             }
         }
     }
@@ -158,10 +171,29 @@ mod tests {
                 let mut im = Image::filled(1, 8, 8, 1.0);
                 im.set(0, 0, 0, 0.0);
                 NoiseConfig { model, a, b }.apply(&mut im, 3);
-                assert!(im.data().iter().all(|v| v.is_finite()), "{model:?} a={a} b={b}");
+                assert!(
+                    im.data().iter().all(|v| v.is_finite()),
+                    "{model:?} a={a} b={b}"
+                );
             }
         }
-        assert!(NoiseConfig { model: NoiseModel::Gaussian, a: -1.0, b: 0.0 }.validate().is_err());
-        assert!(NoiseConfig { model: NoiseModel::Gaussian, a: f32::NAN, b: 0.0 }.validate().is_err());
+        assert!(
+            NoiseConfig {
+                model: NoiseModel::Gaussian,
+                a: -1.0,
+                b: 0.0
+            }
+            .validate()
+            .is_err()
+        );
+        assert!(
+            NoiseConfig {
+                model: NoiseModel::Gaussian,
+                a: f32::NAN,
+                b: 0.0
+            }
+            .validate()
+            .is_err()
+        );
     }
 }

@@ -105,7 +105,9 @@ impl Blur {
                 let plans = self.plans_for(psf, c, h, w);
                 (0..c)
                     .into_par_iter()
-                    .map(|ch| plans[if psf.channels() == 1 { 0 } else { ch }].convolve(image.plane(ch)))
+                    .map(|ch| {
+                        plans[if psf.channels() == 1 { 0 } else { ch }].convolve(image.plane(ch))
+                    })
                     .collect()
             }
             _ => (0..c)
@@ -166,7 +168,8 @@ impl Camera {
             stages.push(Stage::Gamma(config.gamma));
         }
         stages.push(Stage::Quantize(config.bit_depth));
-        let fused_tone = (config.bit_depth == 8).then(|| super::tone_lut::GammaQuantizer::new(config.gamma));
+        let fused_tone =
+            (config.bit_depth == 8).then(|| super::tone_lut::GammaQuantizer::new(config.gamma));
         Ok(Self { stages, fused_tone })
     }
 
@@ -231,7 +234,8 @@ mod tests {
     fn identity_stages_are_not_built() {
         let cam = Camera::new(&CameraConfig::ideal(), Psf::delta(3)).unwrap();
         assert_eq!(cam.stage_names(), vec!["quantize"]);
-        let full = Camera::new(&CameraConfig::default(), Psf::gaussian(3, 2.0, 9).unwrap()).unwrap();
+        let full =
+            Camera::new(&CameraConfig::default(), Psf::gaussian(3, 2.0, 9).unwrap()).unwrap();
         assert_eq!(
             full.stage_names(),
             vec!["brightness", "psf", "noise", "clamp", "gamma", "quantize"]
@@ -250,10 +254,18 @@ mod tests {
 
     #[test]
     fn extreme_images_give_finite_in_range_output() {
-        let cam = Camera::new(&CameraConfig::default(), Psf::gaussian(3, 30.0, 129).unwrap()).unwrap();
+        let cam = Camera::new(
+            &CameraConfig::default(),
+            Psf::gaussian(3, 30.0, 129).unwrap(),
+        )
+        .unwrap();
         for value in [0.0f32, 1.0, 0.5] {
             let out = cam.apply(&Image::filled(3, 20, 24, value), 5).unwrap();
-            assert!(out.data().iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+            assert!(
+                out.data()
+                    .iter()
+                    .all(|v| v.is_finite() && (0.0..=1.0).contains(v))
+            );
         }
         let mut bad = Image::filled(1, 4, 4, 0.2);
         bad.set(0, 1, 1, f32::INFINITY);
@@ -263,7 +275,14 @@ mod tests {
     #[test]
     fn grey_image_convolves_one_channel_with_the_mono_psf() {
         let cam = Camera::new(
-            &CameraConfig { noise: NoiseConfig { a: 0.0, b: 0.0, ..Default::default() }, ..CameraConfig::default() },
+            &CameraConfig {
+                noise: NoiseConfig {
+                    a: 0.0,
+                    b: 0.0,
+                    ..Default::default()
+                },
+                ..CameraConfig::default()
+            },
             Psf::gaussian(3, 1.5, 9).unwrap(),
         )
         .unwrap();
@@ -276,11 +295,23 @@ mod tests {
         let psf = Psf::gaussian(3, 3.0, 15).unwrap();
         let im = gradient(3, 40, 50);
         let mk = |m| {
-            let cfg = CameraConfig { convolution: m, bit_depth: 16, ..CameraConfig::default() };
-            Camera::new(&cfg, psf.clone()).unwrap().apply(&im, 9).unwrap()
+            let cfg = CameraConfig {
+                convolution: m,
+                bit_depth: 16,
+                ..CameraConfig::default()
+            };
+            Camera::new(&cfg, psf.clone())
+                .unwrap()
+                .apply(&im, 9)
+                .unwrap()
         };
         let (d, f) = (mk(ConvMethod::Direct), mk(ConvMethod::Fft));
-        let max = d.data().iter().zip(f.data()).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        let max = d
+            .data()
+            .iter()
+            .zip(f.data())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
         assert!(max <= 1.0 / 65535.0 + 1e-7, "max diff {max}");
     }
 }

@@ -22,7 +22,9 @@ const SIGMA: f64 = 1.5;
 const RADIUS: usize = 5;
 
 fn gaussian_window() -> Vec<f64> {
-    let w: Vec<f64> = (0..=2 * RADIUS).map(|i| (-((i as f64 - RADIUS as f64).powi(2)) / (2.0 * SIGMA * SIGMA)).exp()).collect();
+    let w: Vec<f64> = (0..=2 * RADIUS)
+        .map(|i| (-((i as f64 - RADIUS as f64).powi(2)) / (2.0 * SIGMA * SIGMA)).exp())
+        .collect();
     let s: f64 = w.iter().sum();
     w.into_iter().map(|v| v / s).collect()
 }
@@ -54,11 +56,19 @@ fn ssim_plane(a: &[f32], b: &[f32], h: usize, w: usize) -> f64 {
     let y: Vec<f64> = b.iter().map(|&v| v as f64).collect();
     let prod = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(u, v)| u * v).collect::<Vec<f64>>();
     let (ux, uy) = (filter_valid(&x, h, w, &g), filter_valid(&y, h, w, &g));
-    let (uxx, uyy, uxy) = (filter_valid(&prod(&x, &x), h, w, &g), filter_valid(&prod(&y, &y), h, w, &g), filter_valid(&prod(&x, &y), h, w, &g));
+    let (uxx, uyy, uxy) = (
+        filter_valid(&prod(&x, &x), h, w, &g),
+        filter_valid(&prod(&y, &y), h, w, &g),
+        filter_valid(&prod(&x, &y), h, w, &g),
+    );
     let n = ux.len();
     let mut sum = 0.0;
     for i in 0..n {
-        let (vx, vy, vxy) = (uxx[i] - ux[i] * ux[i], uyy[i] - uy[i] * uy[i], uxy[i] - ux[i] * uy[i]);
+        let (vx, vy, vxy) = (
+            uxx[i] - ux[i] * ux[i],
+            uyy[i] - uy[i] * uy[i],
+            uxy[i] - ux[i] * uy[i],
+        );
         let num = (2.0 * ux[i] * uy[i] + c1) * (2.0 * vxy + c2);
         let den = (ux[i] * ux[i] + uy[i] * uy[i] + c1) * (vx + vy + c2);
         sum += num / den;
@@ -71,15 +81,25 @@ pub fn compare(a: &Image, b: &Image) -> Result<Similarity> {
     if a.shape() != b.shape() {
         let (c1, h1, w1) = a.shape();
         let (c2, h2, w2) = b.shape();
-        return Err(Error::shape("second image", format!("{c1}x{h1}x{w1} (the first)"), format!("{c2}x{h2}x{w2}")));
+        return Err(Error::shape(
+            "second image",
+            format!("{c1}x{h1}x{w1} (the first)"),
+            format!("{c2}x{h2}x{w2}"),
+        ));
     }
     let (c, h, w) = a.shape();
     if h < 2 * RADIUS + 1 || w < 2 * RADIUS + 1 {
-        return Err(Error::invalid("image size", format!("{w}x{h}: SSIM needs at least 11x11 pixels")));
+        return Err(Error::invalid(
+            "image size",
+            format!("{w}x{h}: SSIM needs at least 11x11 pixels"),
+        ));
     }
     a.check_finite("first image")?;
     b.check_finite("second image")?;
-    let ssim = (0..c).map(|ch| ssim_plane(a.plane(ch), b.plane(ch), h, w)).sum::<f64>() / c as f64;
+    let ssim = (0..c)
+        .map(|ch| ssim_plane(a.plane(ch), b.plane(ch), h, w))
+        .sum::<f64>()
+        / c as f64;
     let n = a.data().len() as f64;
     let (mut mae, mut mse) = (0.0, 0.0);
     for (&p, &q) in a.data().iter().zip(b.data()) {
@@ -87,7 +107,11 @@ pub fn compare(a: &Image, b: &Image) -> Result<Similarity> {
         mae += d.abs();
         mse += d * d;
     }
-    Ok(Similarity { ssim, mae: mae / n, mse: mse / n })
+    Ok(Similarity {
+        ssim,
+        mae: mae / n,
+        mse: mse / n,
+    })
 }
 
 #[cfg(test)]
@@ -100,7 +124,10 @@ mod tests {
         for ch in 0..c {
             for y in 0..h {
                 for x in 0..w {
-                    let v = 0.5 + 0.3 * ((x as f64 * 0.3 + phase + ch as f64).sin() * (y as f64 * 0.17 - phase).cos())
+                    let v = 0.5
+                        + 0.3
+                            * ((x as f64 * 0.3 + phase + ch as f64).sin()
+                                * (y as f64 * 0.17 - phase).cos())
                         + 0.1 * (((x * 7 + y * 13 + ch * 5) % 11) as f64 / 11.0 - 0.5);
                     img.set(ch, y, x, v as f32);
                 }
@@ -125,8 +152,16 @@ mod tests {
         // the same float32 images, built by this pattern() in numpy.
         let (a, b) = (pattern(3, 40, 48, 0.0), pattern(3, 40, 48, 0.4));
         let s = compare(&a, &b).unwrap();
-        assert!((s.ssim - SKIMAGE_SSIM).abs() < 1e-4, "ssim {} vs {}", s.ssim, SKIMAGE_SSIM);
-        assert!((s.mae - NUMPY_MAE).abs() < 1e-6 && (s.mse - NUMPY_MSE).abs() < 1e-7, "{s:?}");
+        assert!(
+            (s.ssim - SKIMAGE_SSIM).abs() < 1e-4,
+            "ssim {} vs {}",
+            s.ssim,
+            SKIMAGE_SSIM
+        );
+        assert!(
+            (s.mae - NUMPY_MAE).abs() < 1e-6 && (s.mse - NUMPY_MSE).abs() < 1e-7,
+            "{s:?}"
+        );
     }
 
     const SKIMAGE_SSIM: f64 = 0.833_764_6;

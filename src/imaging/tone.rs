@@ -48,7 +48,11 @@ mod tests {
         for g in [1e-6f32, 50.0] {
             let mut im = Image::from_vec(1, 1, 3, vec![0.0, 0.5, 1.0]).unwrap();
             gamma(&mut im, g);
-            assert!(im.data().iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+            assert!(
+                im.data()
+                    .iter()
+                    .all(|v| v.is_finite() && (0.0..=1.0).contains(v))
+            );
         }
     }
 

@@ -21,10 +21,17 @@ impl GammaQuantizer {
     /// Tables for exponent `gamma` (> 0, finite).
     pub fn new(gamma: f32) -> Self {
         let inv = 1.0 / gamma as f64;
-        let thresholds: Vec<f64> = (1..=255).map(|k| ((k as f64 - 0.5) / 255.0).powf(inv)).collect();
+        let thresholds: Vec<f64> = (1..=255)
+            .map(|k| ((k as f64 - 0.5) / 255.0).powf(inv))
+            .collect();
         let level = |y: f64| thresholds.partition_point(|&t| t <= y) as u8;
         let bins = (0..BINS)
-            .map(|i| (level(i as f64 / BINS as f64), level((i + 1) as f64 / BINS as f64)))
+            .map(|i| {
+                (
+                    level(i as f64 / BINS as f64),
+                    level((i + 1) as f64 / BINS as f64),
+                )
+            })
             .collect();
         Self { thresholds, bins }
     }
@@ -45,7 +52,11 @@ impl GammaQuantizer {
         }
         let y = y as f64;
         if hi == lo + 1 {
-            return if y >= self.thresholds[lo as usize] { hi } else { lo };
+            return if y >= self.thresholds[lo as usize] {
+                hi
+            } else {
+                lo
+            };
         }
         // Steep curves (small γ) put several boundaries in one bin: search them.
         lo + self.thresholds[lo as usize..hi as usize].partition_point(|&t| t <= y) as u8
@@ -76,7 +87,10 @@ mod tests {
                 let got = q.level(y) as f64;
                 if got != exact {
                     let boundary = ((got.max(exact) - 0.5) / 255.0).powf(1.0 / gamma as f64);
-                    assert!(((y as f64) - boundary).abs() < 1e-7, "γ {gamma}, y {y}: {got} vs {exact}");
+                    assert!(
+                        ((y as f64) - boundary).abs() < 1e-7,
+                        "γ {gamma}, y {y}: {got} vs {exact}"
+                    );
                 }
             }
             assert_eq!(q.level(-0.3), 0);

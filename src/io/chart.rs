@@ -63,10 +63,17 @@ impl Chart {
             .filter(|(x, y)| x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0))
             .collect();
         if pts.is_empty() {
-            return Err(Error::invalid("chart", format!("{}: no finite points to plot", self.title)));
+            return Err(Error::invalid(
+                "chart",
+                format!("{}: no finite points to plot", self.title),
+            ));
         }
-        let (mut x0, mut x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
-        let (mut y0, mut y1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
+        let (mut x0, mut x1) = pts
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
+        let (mut y0, mut y1) = pts
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
         if x1 <= x0 {
             x1 = x0 + 1.0;
             x0 -= 1.0;
@@ -82,7 +89,11 @@ impl Chart {
             let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
             root.fill(&WHITE).map_err(plot_err)?;
             let mut builder = ChartBuilder::on(&root);
-            builder.caption(&self.title, ("sans-serif", 20)).margin(12).x_label_area_size(40).y_label_area_size(60);
+            builder
+                .caption(&self.title, ("sans-serif", 20))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(60);
             macro_rules! draw {
                 ($chart:expr) => {{
                     let mut chart = $chart;
@@ -99,11 +110,15 @@ impl Chart {
                             .points
                             .iter()
                             .copied()
-                            .filter(|(x, y)| x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0))
+                            .filter(|(x, y)| {
+                                x.is_finite() && y.is_finite() && (!self.log_y || *y > 0.0)
+                            })
                             .collect();
                         if s.markers {
                             chart
-                                .draw_series(points.iter().map(|&p| Circle::new(p, 5, colour.filled())))
+                                .draw_series(
+                                    points.iter().map(|&p| Circle::new(p, 5, colour.filled())),
+                                )
                                 .map_err(plot_err)?
                                 .label(s.name.as_str())
                                 .legend(move |(x, y)| Circle::new((x + 10, y), 5, colour.filled()));
@@ -112,7 +127,12 @@ impl Chart {
                                 .draw_series(LineSeries::new(points, colour.stroke_width(2)))
                                 .map_err(plot_err)?
                                 .label(s.name.as_str())
-                                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+                                .legend(move |(x, y)| {
+                                    PathElement::new(
+                                        vec![(x, y), (x + 20, y)],
+                                        colour.stroke_width(2),
+                                    )
+                                });
                         }
                     }
                     chart
@@ -125,10 +145,18 @@ impl Chart {
                 }};
             }
             if self.log_y {
-                draw!(builder.build_cartesian_2d(x0..x1, (y0 * 0.8..y1 * 1.25).log_scale()).map_err(plot_err)?);
+                draw!(
+                    builder
+                        .build_cartesian_2d(x0..x1, (y0 * 0.8..y1 * 1.25).log_scale())
+                        .map_err(plot_err)?
+                );
             } else {
                 let pad = (y1 - y0) * 0.08;
-                draw!(builder.build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad)).map_err(plot_err)?);
+                draw!(
+                    builder
+                        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+                        .map_err(plot_err)?
+                );
             }
             root.present().map_err(plot_err)?;
         }
@@ -155,7 +183,11 @@ mod tests {
             title: "loss".into(),
             x_label: "step".into(),
             y_label: "L1".into(),
-            series: vec![Series { name: "train".into(), points: (1..50).map(|i| (i as f64, 10.0 / i as f64)).collect(), markers: false }],
+            series: vec![Series {
+                name: "train".into(),
+                points: (1..50).map(|i| (i as f64, 10.0 / i as f64)).collect(),
+                markers: false,
+            }],
             log_y: true,
         };
         let p = d.path().join("c.png");
@@ -163,7 +195,10 @@ mod tests {
         let img = crate::io::read_image(&p).unwrap();
         assert_eq!((img.width(), img.height()), (320, 240));
         assert!(img.data().iter().any(|&v| v < 0.5), "something was drawn");
-        let empty = Chart { series: vec![], ..chart };
+        let empty = Chart {
+            series: vec![],
+            ..chart
+        };
         assert!(empty.write_png(&d.path().join("e.png"), 100, 100).is_err());
         assert!(!d.path().join("e.png").exists());
     }

@@ -29,7 +29,12 @@ pub struct DofParams {
 
 impl Default for DofParams {
     fn default() -> Self {
-        Self { focal_mm: 1.6, diameter_mm: 1.0, pixel_um: 2.2, coc_pixels: 2.0 }
+        Self {
+            focal_mm: 1.6,
+            diameter_mm: 1.0,
+            pixel_um: 2.2,
+            coc_pixels: 2.0,
+        }
     }
 }
 
@@ -40,9 +45,17 @@ impl DofParams {
     }
 
     fn validate(&self) -> Result<()> {
-        for (n, v) in [("focal length", self.focal_mm), ("diameter", self.diameter_mm), ("pixel", self.pixel_um), ("circle of confusion", self.coc_pixels)] {
+        for (n, v) in [
+            ("focal length", self.focal_mm),
+            ("diameter", self.diameter_mm),
+            ("pixel", self.pixel_um),
+            ("circle of confusion", self.coc_pixels),
+        ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(n, format!("must be finite and > 0, got {v}")));
+                return Err(Error::invalid(
+                    n,
+                    format!("must be finite and > 0, got {v}"),
+                ));
             }
         }
         Ok(())
@@ -53,7 +66,10 @@ impl DofParams {
     pub fn range(&self, offset_um: f64) -> Result<DofRow> {
         self.validate()?;
         if !offset_um.is_finite() {
-            return Err(Error::invalid("v0 − f", format!("must be finite, got {offset_um}")));
+            return Err(Error::invalid(
+                "v0 − f",
+                format!("must be finite, got {offset_um}"),
+            ));
         }
         let f = self.focal_mm * 1e-3;
         let dv = self.max_shift_m();
@@ -62,13 +78,20 @@ impl DofParams {
         if near_img <= f {
             return Err(Error::invalid(
                 "v0 − f",
-                format!("{offset_um} µm: the sensor is more than Δv_max = {:.2} µm in front of the focal plane, so no object is in focus", dv * 1e6),
+                format!(
+                    "{offset_um} µm: the sensor is more than Δv_max = {:.2} µm in front of the focal plane, so no object is in focus",
+                    dv * 1e6
+                ),
             ));
         }
         // Eq. S6: u' = f·v' / (v' − f).
         let object = |v: f64| f * v / (v - f);
         let far_img = v0 - dv;
-        Ok(DofRow { v0_minus_f_um: offset_um, u_near_m: object(near_img), u_far_m: (far_img > f).then(|| object(far_img)) })
+        Ok(DofRow {
+            v0_minus_f_um: offset_um,
+            u_near_m: object(near_img),
+            u_far_m: (far_img > f).then(|| object(far_img)),
+        })
     }
 }
 
@@ -80,11 +103,26 @@ mod tests {
     fn reproduces_table_s1() {
         let p = DofParams::default();
         assert!((p.max_shift_m() - 7.04e-6).abs() < 1e-12);
-        let expected = [(0.0, 0.37, None), (10.0, 0.15, Some(0.87)), (15.0, 0.12, Some(0.32)), (20.0, 0.10, Some(0.20)), (25.0, 0.08, Some(0.14))];
+        let expected = [
+            (0.0, 0.37, None),
+            (10.0, 0.15, Some(0.87)),
+            (15.0, 0.12, Some(0.32)),
+            (20.0, 0.10, Some(0.20)),
+            (25.0, 0.08, Some(0.14)),
+        ];
         for (off, near, far) in expected {
             let r = p.range(off).unwrap();
-            assert_eq!((r.u_near_m * 100.0).round() / 100.0, near, "near at f + {off} µm: {}", r.u_near_m);
-            assert_eq!(r.u_far_m.map(|v| (v * 100.0).round() / 100.0), far, "far at f + {off} µm");
+            assert_eq!(
+                (r.u_near_m * 100.0).round() / 100.0,
+                near,
+                "near at f + {off} µm: {}",
+                r.u_near_m
+            );
+            assert_eq!(
+                r.u_far_m.map(|v| (v * 100.0).round() / 100.0),
+                far,
+                "far at f + {off} µm"
+            );
         }
         assert!(p.range(-10.0).is_err());
         assert!(DofParams { pixel_um: 0.0, ..p }.range(0.0).is_err());

@@ -22,14 +22,23 @@ pub struct Coverage {
 /// Sectors for lenses pointed at `tilts_deg`, each covering `fov_deg`.
 pub fn coverage(tilts_deg: &[f64], fov_deg: f64) -> Result<Coverage> {
     if tilts_deg.is_empty() || tilts_deg.iter().any(|t| !t.is_finite() || t.abs() >= 90.0) {
-        return Err(Error::invalid("tilts", format!("need at least one finite tilt within ±90°, got {tilts_deg:?}")));
+        return Err(Error::invalid(
+            "tilts",
+            format!("need at least one finite tilt within ±90°, got {tilts_deg:?}"),
+        ));
     }
     if !(fov_deg.is_finite() && fov_deg > 0.0 && fov_deg < 180.0) {
-        return Err(Error::invalid("fov", format!("must be in (0, 180)°, got {fov_deg}")));
+        return Err(Error::invalid(
+            "fov",
+            format!("must be in (0, 180)°, got {fov_deg}"),
+        ));
     }
     let mut centres = tilts_deg.to_vec();
     centres.sort_by(|a, b| a.total_cmp(b));
-    let sectors: Vec<[f64; 2]> = centres.iter().map(|c| [c - fov_deg / 2.0, c + fov_deg / 2.0]).collect();
+    let sectors: Vec<[f64; 2]> = centres
+        .iter()
+        .map(|c| [c - fov_deg / 2.0, c + fov_deg / 2.0])
+        .collect();
     let overlaps_deg: Vec<f64> = sectors.windows(2).map(|w| w[0][1] - w[1][0]).collect();
     let mut total = 0.0;
     let mut end = f64::NEG_INFINITY;
@@ -40,7 +49,11 @@ pub fn coverage(tilts_deg: &[f64], fov_deg: f64) -> Result<Coverage> {
         }
         end = end.max(s[1]);
     }
-    Ok(Coverage { sectors, total_deg: total, overlaps_deg })
+    Ok(Coverage {
+        sectors,
+        total_deg: total,
+        overlaps_deg,
+    })
 }
 
 /// The focal spot at one field angle.
@@ -55,14 +68,27 @@ pub struct SpotRow {
 /// `fov_deg`, for `lens` (which carries the profile and the tilt), on an FFT grid of `grid`.
 pub fn spot_sweep(lens: &Lens, fov_deg: f64, steps: usize, grid: usize) -> Result<Vec<SpotRow>> {
     if steps == 0 || !(fov_deg.is_finite() && fov_deg > 0.0 && fov_deg < 180.0) {
-        return Err(Error::invalid("spot sweep", format!("need steps > 0 and fov in (0, 180)°, got {steps}, {fov_deg}")));
+        return Err(Error::invalid(
+            "spot sweep",
+            format!("need steps > 0 and fov in (0, 180)°, got {steps}, {fov_deg}"),
+        ));
     }
     let airy = lens.airy_radius_um(lens.design_wavelength_nm);
     (0..=steps)
         .map(|i| {
             let angle = lens.tilt_deg + fov_deg / 2.0 * i as f64 / steps as f64;
-            let params = PsfParams { lens: lens.clone(), field_angle_deg: angle, grid, kernel_size: 65, ..PsfParams::default() };
-            Ok(SpotRow { field_angle_deg: angle, spot_radius_um: spot_radius_um(&params, lens.design_wavelength_nm)?, airy_radius_um: airy })
+            let params = PsfParams {
+                lens: lens.clone(),
+                field_angle_deg: angle,
+                grid,
+                kernel_size: 65,
+                ..PsfParams::default()
+            };
+            Ok(SpotRow {
+                field_angle_deg: angle,
+                spot_radius_um: spot_radius_um(&params, lens.design_wavelength_nm)?,
+                airy_radius_um: airy,
+            })
         })
         .collect()
 }

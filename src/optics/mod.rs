@@ -8,8 +8,8 @@ pub mod lens;
 pub mod phase;
 mod propagate;
 pub mod psf;
-mod sampling;
 pub mod resolution;
+mod sampling;
 pub mod spectrum;
 pub mod stereo;
 

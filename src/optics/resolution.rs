@@ -22,10 +22,25 @@ pub struct Resolution {
 
 /// From pixel pitch (µm), focal length (mm), distance (m), and the smallest detectable
 /// displacement and target diameter in pixels.
-pub fn resolution(pixel_um: f64, focal_mm: f64, distance_m: f64, min_shift_px: f64, min_target_px: f64) -> Result<Resolution> {
-    for (n, v) in [("pixel", pixel_um), ("focal length", focal_mm), ("distance", distance_m), ("displacement", min_shift_px), ("target size", min_target_px)] {
+pub fn resolution(
+    pixel_um: f64,
+    focal_mm: f64,
+    distance_m: f64,
+    min_shift_px: f64,
+    min_target_px: f64,
+) -> Result<Resolution> {
+    for (n, v) in [
+        ("pixel", pixel_um),
+        ("focal length", focal_mm),
+        ("distance", distance_m),
+        ("displacement", min_shift_px),
+        ("target size", min_target_px),
+    ] {
         if !(v.is_finite() && v > 0.0) {
-            return Err(Error::invalid(n, format!("must be finite and > 0, got {v}")));
+            return Err(Error::invalid(
+                n,
+                format!("must be finite and > 0, got {v}"),
+            ));
         }
     }
     // Small-angle (exact on axis): one pixel spans atan(p/f).

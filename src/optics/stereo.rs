@@ -8,7 +8,12 @@ use crate::error::{Error, Result};
 /// Eq. S24: the incident angle (rad) of a point imaged `x_mm` from the axis.
 pub fn incident_angle(profile: Profile, x_mm: f64, focal_mm: f64) -> Result<f64> {
     if !(x_mm.is_finite() && focal_mm.is_finite() && focal_mm > 0.0) {
-        return Err(Error::invalid("stereo input", format!("image position {x_mm} mm and focal length {focal_mm} mm must be finite, f > 0")));
+        return Err(Error::invalid(
+            "stereo input",
+            format!(
+                "image position {x_mm} mm and focal length {focal_mm} mm must be finite, f > 0"
+            ),
+        ));
     }
     let t = -x_mm / focal_mm;
     match profile {
@@ -17,7 +22,10 @@ pub fn incident_angle(profile: Profile, x_mm: f64, focal_mm: f64) -> Result<f64>
             if t.abs() >= 1.0 {
                 Err(Error::invalid(
                     "image position",
-                    format!("|x| = {} mm ≥ f = {focal_mm} mm lies beyond the range of the quadratic projection x = −f·sin α", x_mm.abs()),
+                    format!(
+                        "|x| = {} mm ≥ f = {focal_mm} mm lies beyond the range of the quadratic projection x = −f·sin α",
+                        x_mm.abs()
+                    ),
                 ))
             } else {
                 Ok(t.asin())
@@ -27,11 +35,23 @@ pub fn incident_angle(profile: Profile, x_mm: f64, focal_mm: f64) -> Result<f64>
 }
 
 /// Eq. S25: depth (m) of a point imaged at `x1_mm` and `x2_mm` by two lenses `baseline_m` apart.
-pub fn depth(profile: Profile, x1_mm: f64, x2_mm: f64, focal_mm: f64, baseline_m: f64) -> Result<f64> {
+pub fn depth(
+    profile: Profile,
+    x1_mm: f64,
+    x2_mm: f64,
+    focal_mm: f64,
+    baseline_m: f64,
+) -> Result<f64> {
     if !(baseline_m.is_finite() && baseline_m > 0.0) {
-        return Err(Error::invalid("baseline", format!("must be finite and > 0, got {baseline_m}")));
+        return Err(Error::invalid(
+            "baseline",
+            format!("must be finite and > 0, got {baseline_m}"),
+        ));
     }
-    let (a, b) = (incident_angle(profile, x1_mm, focal_mm)?, incident_angle(profile, x2_mm, focal_mm)?);
+    let (a, b) = (
+        incident_angle(profile, x1_mm, focal_mm)?,
+        incident_angle(profile, x2_mm, focal_mm)?,
+    );
     let s = a.tan() + b.tan();
     if s <= 0.0 {
         return Err(Error::invalid(
@@ -59,7 +79,13 @@ mod tests {
             let got = depth(p, proj(a), proj(b), f, d).unwrap();
             assert!((got - z).abs() < 1e-9, "{p:?}: {got}");
         }
-        assert!(depth(Profile::Hyperbolic, 0.1, 0.1, f, d).is_err(), "diverging rays");
-        assert!(depth(Profile::Quadratic, -1.7, -0.1, f, d).is_err(), "beyond f");
+        assert!(
+            depth(Profile::Hyperbolic, 0.1, 0.1, f, d).is_err(),
+            "diverging rays"
+        );
+        assert!(
+            depth(Profile::Quadratic, -1.7, -0.1, f, d).is_err(),
+            "beyond f"
+        );
     }
 }

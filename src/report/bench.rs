@@ -133,7 +133,14 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport> {
                 stage.apply(&mut img, 1)?;
                 stages_ms.push((stage.name().to_string(), t));
             }
-            pipeline.push(PipelineRow { height: h, width: w, threads, ms_per_frame: ms, pairs_per_s: 1e3 / (2.0 * ms), stages_ms });
+            pipeline.push(PipelineRow {
+                height: h,
+                width: w,
+                threads,
+                ms_per_frame: ms,
+                pairs_per_s: 1e3 / (2.0 * ms),
+                stages_ms,
+            });
         }
     }
     let one = rayon::ThreadPoolBuilder::new()
@@ -141,7 +148,11 @@ pub fn run(opts: &BenchOptions) -> Result<BenchReport> {
         .build()
         .map_err(|e| Error::invalid("threads", e.to_string()))?;
     let convolution = one.install(|| convolution_table(opts, &psf))?;
-    Ok(BenchReport { pipeline, convolution_plane: [opts.conv_plane.0, opts.conv_plane.1], convolution })
+    Ok(BenchReport {
+        pipeline,
+        convolution_plane: [opts.conv_plane.0, opts.conv_plane.1],
+        convolution,
+    })
 }
 
 /// Direct against FFT on one core, with errors against the f64 reference.
@@ -156,10 +167,20 @@ fn convolution_table(opts: &BenchOptions, psf: &Psf) -> Result<Vec<ConvRow>> {
         }
         let kernel = resize_kernel(psf, k);
         let reference = convolve_reference(plane, ph, pw, &kernel, k, k);
-        let err = |v: &[f32]| v.iter().zip(&reference).map(|(&a, &b)| (a as f64 - b).abs()).fold(0.0, f64::max);
+        let err = |v: &[f32]| {
+            v.iter()
+                .zip(&reference)
+                .map(|(&a, &b)| (a as f64 - b).abs())
+                .fold(0.0, f64::max)
+        };
         let (direct_ms, direct_max_err) = if k <= opts.max_direct {
             let d = convolve_direct(plane, ph, pw, &kernel, k, k);
-            (Some(median_ms(opts.reps, || convolve_direct(plane, ph, pw, &kernel, k, k))), Some(err(&d)))
+            (
+                Some(median_ms(opts.reps, || {
+                    convolve_direct(plane, ph, pw, &kernel, k, k)
+                })),
+                Some(err(&d)),
+            )
         } else {
             (None, None)
         };
@@ -167,8 +188,19 @@ fn convolution_table(opts: &BenchOptions, psf: &Psf) -> Result<Vec<ConvRow>> {
         let f = conv.convolve(plane);
         // The kernel spectrum is computed once per camera and frame size, so it is not timed.
         let fft_ms = median_ms(opts.reps, || conv.convolve(plane));
-        let auto_choice = format!("{:?}", crate::imaging::convolve::choose_method(ph, pw, k, k)).to_lowercase();
-        convolution.push(ConvRow { psf_size: k, direct_ms, fft_ms, direct_max_err, fft_max_err: err(&f), auto_choice });
+        let auto_choice = format!(
+            "{:?}",
+            crate::imaging::convolve::choose_method(ph, pw, k, k)
+        )
+        .to_lowercase();
+        convolution.push(ConvRow {
+            psf_size: k,
+            direct_ms,
+            fft_ms,
+            direct_max_err,
+            fft_max_err: err(&f),
+            auto_choice,
+        });
     }
     Ok(convolution)
 }
@@ -176,12 +208,23 @@ fn convolution_table(opts: &BenchOptions, psf: &Psf) -> Result<Vec<ConvRow>> {
 impl BenchReport {
     /// Markdown tables.
     pub fn markdown(&self) -> String {
-        let mut s = String::from("| frame (H×W×3) | threads | ms per frame | pairs/s | stages (ms, each including a copy of the frame) |\n|---|---|---|---|---|\n");
+        let mut s = String::from(
+            "| frame (H×W×3) | threads | ms per frame | pairs/s | stages (ms, each including a copy of the frame) |\n|---|---|---|---|---|\n",
+        );
         for r in &self.pipeline {
-            let stages: Vec<String> = r.stages_ms.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
+            let stages: Vec<String> = r
+                .stages_ms
+                .iter()
+                .map(|(n, t)| format!("{n} {t:.1}"))
+                .collect();
             s += &format!(
                 "| {}×{} | {} | {:.1} | {:.1} | {} |\n",
-                r.height, r.width, r.threads, r.ms_per_frame, r.pairs_per_s, stages.join(", ")
+                r.height,
+                r.width,
+                r.threads,
+                r.ms_per_frame,
+                r.pairs_per_s,
+                stages.join(", ")
             );
         }
         s += &format!(
@@ -190,8 +233,14 @@ impl BenchReport {
         );
         s += "| PSF | direct ms | direct error | FFT ms | FFT error | auto picks |\n|---|---|---|---|---|---|\n";
         for r in &self.convolution {
-            let d = r.direct_ms.map(|v| format!("{v:.1}")).unwrap_or_else(|| "–".into());
-            let de = r.direct_max_err.map(|v| format!("{v:.1e}")).unwrap_or_else(|| "–".into());
+            let d = r
+                .direct_ms
+                .map(|v| format!("{v:.1}"))
+                .unwrap_or_else(|| "–".into());
+            let de = r
+                .direct_max_err
+                .map(|v| format!("{v:.1e}"))
+                .unwrap_or_else(|| "–".into());
             s += &format!(
                 "| {0}×{0} | {1} | {2} | {3:.1} | {4:.1e} | {5} |\n",
                 r.psf_size, d, de, r.fft_ms, r.fft_max_err, r.auto_choice

@@ -31,17 +31,38 @@ pub fn read_peers(path: &Path) -> Result<Vec<PeerRow>> {
 /// Writes the EPE-against-time PNG.
 pub fn write(report: &EvalReport, peers: Option<&Path>, png: &Path) -> Result<()> {
     let mut series = vec![Series {
-        name: format!("{} (iterations {})", report.model, report.rows.iter().map(|r| r.iters.to_string()).collect::<Vec<_>>().join(", ")),
+        name: format!(
+            "{} (iterations {})",
+            report.model,
+            report
+                .rows
+                .iter()
+                .map(|r| r.iters.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
         points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(),
         markers: false,
     }];
-    series.push(Series { name: format!("{} points", report.model), points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(), markers: true });
+    series.push(Series {
+        name: format!("{} points", report.model),
+        points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(),
+        markers: true,
+    });
     if let Some(p) = peers {
         for peer in read_peers(p)? {
-            series.push(Series { name: peer.name.clone(), points: vec![(peer.ms_per_pair, peer.epe)], markers: true });
+            series.push(Series {
+                name: peer.name.clone(),
+                points: vec![(peer.ms_per_pair, peer.epe)],
+                markers: true,
+            });
         }
     }
-    series.push(Series { name: "zero flow".into(), points: vec![(0.0, report.zero_flow.epe)], markers: true });
+    series.push(Series {
+        name: "zero flow".into(),
+        points: vec![(0.0, report.zero_flow.epe)],
+        markers: true,
+    });
     Chart {
         title: format!("EPE against run time, {} pairs", report.pairs),
         x_label: "ms per pair".into(),

@@ -31,16 +31,37 @@ pub struct FlowBenchRow {
 pub fn peak_rss_mb() -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok()))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        })
         .map(|kb| kb / 1024.0)
         .unwrap_or(0.0)
 }
 
 /// Runs one measurement: `mode` is `infer` (batch 1) or `train` (batch 2, AdamW step).
-pub fn run(model: &str, mode: &str, height: usize, width: usize, iters: usize, reps: usize) -> Result<FlowBenchRow> {
+pub fn run(
+    model: &str,
+    mode: &str,
+    height: usize,
+    width: usize,
+    iters: usize,
+    reps: usize,
+) -> Result<FlowBenchRow> {
     let cfg = MmsConfig::named(model)?;
-    if !height.is_multiple_of(8) || !width.is_multiple_of(8) || height < cfg.min_side() || width < cfg.min_side() {
-        return Err(Error::invalid("size", format!("{height}x{width}: sides must be multiples of 8 and at least {}", cfg.min_side())));
+    if !height.is_multiple_of(8)
+        || !width.is_multiple_of(8)
+        || height < cfg.min_side()
+        || width < cfg.min_side()
+    {
+        return Err(Error::invalid(
+            "size",
+            format!(
+                "{height}x{width}: sides must be multiples of 8 and at least {}",
+                cfg.min_side()
+            ),
+        ));
     }
     let (ms, batch, params) = match mode {
         "infer" => {
@@ -63,7 +84,11 @@ pub fn run(model: &str, mode: &str, height: usize, width: usize, iters: usize, r
             let batch = 2;
             let a = Tensor::<4>::random([batch, 3, height, width], Distribution::Default, &device);
             let b = Tensor::<4>::random([batch, 3, height, width], Distribution::Default, &device);
-            let gt = Tensor::<4>::random([batch, 2, height, width], Distribution::Normal(0.0, 4.0), &device);
+            let gt = Tensor::<4>::random(
+                [batch, 2, height, width],
+                Distribution::Normal(0.0, 4.0),
+                &device,
+            );
             let valid = Tensor::<4>::ones([batch, 1, height, width], &device);
             let mut step = || {
                 let preds = net.forward(a.clone(), b.clone(), iters, true);
@@ -74,7 +99,12 @@ pub fn run(model: &str, mode: &str, height: usize, width: usize, iters: usize, r
             let ms = median_ms(reps, &mut step);
             (ms, batch, params)
         }
-        other => return Err(Error::invalid("--mode", format!("{other:?}: use infer or train"))),
+        other => {
+            return Err(Error::invalid(
+                "--mode",
+                format!("{other:?}: use infer or train"),
+            ));
+        }
     };
     Ok(FlowBenchRow {
         tool: format!("pins {model}"),

@@ -14,24 +14,45 @@ pub struct Affine {
 }
 
 impl Affine {
-    pub const IDENTITY: Affine = Affine { a: 1.0, b: 0.0, c: 0.0, d: 1.0, tx: 0.0, ty: 0.0 };
+    pub const IDENTITY: Affine = Affine {
+        a: 1.0,
+        b: 0.0,
+        c: 0.0,
+        d: 1.0,
+        tx: 0.0,
+        ty: 0.0,
+    };
 
     /// Translation by (tx, ty).
     pub fn translation(tx: f64, ty: f64) -> Self {
-        Self { tx, ty, ..Self::IDENTITY }
+        Self {
+            tx,
+            ty,
+            ..Self::IDENTITY
+        }
     }
 
     /// A pose: scale `s`, then rotate by `theta` (radians, clockwise on screen since y points
     /// down), then move the origin to `(x, y)`.
     pub fn pose(x: f64, y: f64, theta: f64, s: f64) -> Self {
         let (sn, cs) = theta.sin_cos();
-        Self { a: s * cs, b: -s * sn, c: s * sn, d: s * cs, tx: x, ty: y }
+        Self {
+            a: s * cs,
+            b: -s * sn,
+            c: s * sn,
+            d: s * cs,
+            tx: x,
+            ty: y,
+        }
     }
 
     /// Applies the transform to a point.
     #[inline]
     pub fn apply(&self, x: f64, y: f64) -> (f64, f64) {
-        (self.a * x + self.b * y + self.tx, self.c * x + self.d * y + self.ty)
+        (
+            self.a * x + self.b * y + self.tx,
+            self.c * x + self.d * y + self.ty,
+        )
     }
 
     /// `self ∘ other`: first `other`, then `self`.
@@ -53,7 +74,14 @@ impl Affine {
             return None;
         }
         let (a, b, c, d) = (self.d / det, -self.b / det, -self.c / det, self.a / det);
-        Some(Affine { a, b, c, d, tx: -(a * self.tx + b * self.ty), ty: -(c * self.tx + d * self.ty) })
+        Some(Affine {
+            a,
+            b,
+            c,
+            d,
+            tx: -(a * self.tx + b * self.ty),
+            ty: -(c * self.tx + d * self.ty),
+        })
     }
 }
 
@@ -70,7 +98,15 @@ mod tests {
         assert!((bx - 3.0).abs() < 1e-12 && (by - 5.0).abs() < 1e-12);
         let id = t.compose(&inv);
         assert!((id.a - 1.0).abs() < 1e-12 && id.b.abs() < 1e-12 && id.tx.abs() < 1e-12);
-        assert!(Affine { a: 0.0, d: 0.0, ..Affine::IDENTITY }.inverse().is_none());
+        assert!(
+            Affine {
+                a: 0.0,
+                d: 0.0,
+                ..Affine::IDENTITY
+            }
+            .inverse()
+            .is_none()
+        );
     }
 
     #[test]

@@ -63,7 +63,10 @@ impl Default for ChairsConfig {
 
 fn check_range(name: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<()> {
     if !(r[0].is_finite() && r[1].is_finite() && lo <= r[0] && r[0] <= r[1] && r[1] <= hi) {
-        return Err(Error::invalid(name, format!("expected {lo} <= min <= max <= {hi}, got {r:?}")));
+        return Err(Error::invalid(
+            name,
+            format!("expected {lo} <= min <= max <= {hi}, got {r:?}"),
+        ));
     }
     Ok(())
 }
@@ -72,13 +75,25 @@ impl ChairsConfig {
     /// Checks every field, naming the first bad one.
     pub fn validate(&self) -> Result<()> {
         if self.width < 8 || self.height < 8 || self.width > 16384 || self.height > 16384 {
-            return Err(Error::invalid("scene size", format!("{}x{}: each side must be 8..=16384", self.width, self.height)));
+            return Err(Error::invalid(
+                "scene size",
+                format!(
+                    "{}x{}: each side must be 8..=16384",
+                    self.width, self.height
+                ),
+            ));
         }
         if self.channels != 1 && self.channels != 3 {
-            return Err(Error::invalid("scene.channels", format!("must be 1 or 3, got {}", self.channels)));
+            return Err(Error::invalid(
+                "scene.channels",
+                format!("must be 1 or 3, got {}", self.channels),
+            ));
         }
         if self.sprites[0] > self.sprites[1] || self.sprites[1] > 256 {
-            return Err(Error::invalid("scene.sprites", format!("expected min <= max <= 256, got {:?}", self.sprites)));
+            return Err(Error::invalid(
+                "scene.sprites",
+                format!("expected min <= max <= 256, got {:?}", self.sprites),
+            ));
         }
         check_range("scene.sprite_radius", self.sprite_radius, 0.005, 2.0)?;
         check_range("scene.scale_change", self.scale_change, 0.1, 10.0)?;
@@ -87,14 +102,23 @@ impl ChairsConfig {
             ("scene.max_translation", self.max_translation),
             ("scene.max_rotation_deg", self.max_rotation_deg),
             ("scene.background_translation", self.background_translation),
-            ("scene.background_rotation_deg", self.background_rotation_deg),
+            (
+                "scene.background_rotation_deg",
+                self.background_rotation_deg,
+            ),
         ] {
             if !v.is_finite() || v < 0.0 {
-                return Err(Error::invalid(name, format!("must be finite and >= 0, got {v}")));
+                return Err(Error::invalid(
+                    name,
+                    format!("must be finite and >= 0, got {v}"),
+                ));
             }
         }
         if self.supersample == 0 || self.supersample > 8 {
-            return Err(Error::invalid("scene.supersample", format!("must be 1..=8, got {}", self.supersample)));
+            return Err(Error::invalid(
+                "scene.supersample",
+                format!("must be 1..=8, got {}", self.supersample),
+            ));
         }
         Ok(())
     }
@@ -121,7 +145,10 @@ impl ChairsConfig {
         };
         layers.push(Layer {
             shape: Shape::Full,
-            fill: Fill::Texture { image: Arc::new(bg_tex), origin: (tw as f64 / 2.0, th as f64 / 2.0) },
+            fill: Fill::Texture {
+                image: Arc::new(bg_tex),
+                origin: (tw as f64 / 2.0, th as f64 / 2.0),
+            },
             poses: [pose1, centre_motion.compose(&pose1)],
         });
 
@@ -129,7 +156,13 @@ impl ChairsConfig {
         for _ in 0..count {
             let radius = uniform(&mut r, self.sprite_radius) * short;
             let harmonics: Vec<(u32, f64, f64)> = (2..=5)
-                .map(|k| (k, r.random_range(0.0..0.25) / (k as f64 - 1.0), r.random_range(0.0..2.0 * PI)))
+                .map(|k| {
+                    (
+                        k,
+                        r.random_range(0.0..0.25) / (k as f64 - 1.0),
+                        r.random_range(0.0..2.0 * PI),
+                    )
+                })
                 .collect();
             let shape = Shape::Blob { radius, harmonics };
             let bound = shape.bound_radius();
@@ -142,8 +175,14 @@ impl ChairsConfig {
             let ds = uniform(&mut r, self.scale_change);
             layers.push(Layer {
                 shape,
-                fill: Fill::Texture { image: Arc::new(tex), origin: (size as f64 / 2.0, size as f64 / 2.0) },
-                poses: [Affine::pose(x, y, theta, s), Affine::pose(x + dx, y + dy, theta + dtheta, s * ds)],
+                fill: Fill::Texture {
+                    image: Arc::new(tex),
+                    origin: (size as f64 / 2.0, size as f64 / 2.0),
+                },
+                poses: [
+                    Affine::pose(x, y, theta, s),
+                    Affine::pose(x + dx, y + dy, theta + dtheta, s * ds),
+                ],
             });
         }
         Ok(LayeredScene {
@@ -157,7 +196,11 @@ impl ChairsConfig {
 }
 
 fn uniform(r: &mut rng::Rng, range: [f64; 2]) -> f64 {
-    if range[0] == range[1] { range[0] } else { r.random_range(range[0]..=range[1]) }
+    if range[0] == range[1] {
+        range[0]
+    } else {
+        r.random_range(range[0]..=range[1])
+    }
 }
 
 /// A point uniform in the disc of radius `max`.
@@ -172,7 +215,12 @@ mod tests {
     use super::*;
 
     fn small() -> ChairsConfig {
-        ChairsConfig { width: 64, height: 48, supersample: 2, ..ChairsConfig::default() }
+        ChairsConfig {
+            width: 64,
+            height: 48,
+            supersample: 2,
+            ..ChairsConfig::default()
+        }
     }
 
     #[test]
@@ -182,7 +230,10 @@ mod tests {
         let b = cfg.build(5).unwrap();
         assert_eq!(a.render(0).unwrap(), b.render(0).unwrap());
         assert_eq!(a.flow().unwrap(), b.flow().unwrap());
-        assert_ne!(a.render(0).unwrap(), cfg.build(6).unwrap().render(0).unwrap());
+        assert_ne!(
+            a.render(0).unwrap(),
+            cfg.build(6).unwrap().render(0).unwrap()
+        );
         assert!(!a.is_static());
         let f = a.flow().unwrap();
         assert!(f.max_magnitude() > 0.0 && f.max_magnitude() < 80.0);
@@ -191,9 +242,17 @@ mod tests {
     #[test]
     fn warping_frame2_by_the_flow_reproduces_frame1() {
         // Brightness constancy on non-occluded pixels: the exactness of the flow.
-        let cfg = ChairsConfig { supersample: 1, sprites: [2, 2], ..small() };
+        let cfg = ChairsConfig {
+            supersample: 1,
+            sprites: [2, 2],
+            ..small()
+        };
         let scene = cfg.build(3).unwrap();
-        let (f1, f2, flow) = (scene.render(0).unwrap(), scene.render(1).unwrap(), scene.flow().unwrap());
+        let (f1, f2, flow) = (
+            scene.render(0).unwrap(),
+            scene.render(1).unwrap(),
+            scene.flow().unwrap(),
+        );
         let (mut err_flow, mut err_zero, mut n) = (0.0f64, 0.0f64, 0);
         for y in 4..44 {
             for x in 4..60 {
@@ -209,14 +268,38 @@ mod tests {
             }
         }
         assert!(n > 1000);
-        assert!(err_flow < 0.5 * err_zero, "warp {err_flow} vs zero-flow {err_zero}");
+        assert!(
+            err_flow < 0.5 * err_zero,
+            "warp {err_flow} vs zero-flow {err_zero}"
+        );
     }
 
     #[test]
     fn bad_config_is_rejected() {
-        assert!(ChairsConfig { sprites: [5, 2], ..small() }.validate().is_err());
-        assert!(ChairsConfig { max_translation: f64::NAN, ..small() }.validate().is_err());
-        assert!(ChairsConfig { width: 0, ..small() }.validate().is_err());
+        assert!(
+            ChairsConfig {
+                sprites: [5, 2],
+                ..small()
+            }
+            .validate()
+            .is_err()
+        );
+        assert!(
+            ChairsConfig {
+                max_translation: f64::NAN,
+                ..small()
+            }
+            .validate()
+            .is_err()
+        );
+        assert!(
+            ChairsConfig {
+                width: 0,
+                ..small()
+            }
+            .validate()
+            .is_err()
+        );
         assert!(serde_json::from_str::<ChairsConfig>(r#"{"sprite": [1, 2]}"#).is_err());
     }
 }

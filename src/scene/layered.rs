@@ -18,7 +18,10 @@ pub enum Fill {
     /// One colour (one value per channel).
     Flat(Vec<f32>),
     /// A raster, addressed by local coordinates plus `origin` (the raster pixel at local 0, 0).
-    Texture { image: Arc<Image>, origin: (f64, f64) },
+    Texture {
+        image: Arc<Image>,
+        origin: (f64, f64),
+    },
 }
 
 /// One layer: a shape in local coordinates, its fill, and its pose in each of the two frames.
@@ -60,10 +63,16 @@ impl LayeredScene {
     /// Checks sizes and that every pose can be inverted.
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 {
-            return Err(Error::invalid("scene size", format!("{}x{} has no pixels", self.width, self.height)));
+            return Err(Error::invalid(
+                "scene size",
+                format!("{}x{} has no pixels", self.width, self.height),
+            ));
         }
         if self.channels != 1 && self.channels != 3 {
-            return Err(Error::invalid("scene channels", format!("must be 1 or 3, got {}", self.channels)));
+            return Err(Error::invalid(
+                "scene channels",
+                format!("must be 1 or 3, got {}", self.channels),
+            ));
         }
         self.prepare().map(|_| ())
     }
@@ -75,7 +84,10 @@ impl LayeredScene {
             .map(|(i, layer)| {
                 let inv = |k: usize| {
                     layer.poses[k].inverse().ok_or_else(|| {
-                        Error::invalid(format!("layer {i} pose in frame {}", k + 1), "singular transform")
+                        Error::invalid(
+                            format!("layer {i} pose in frame {}", k + 1),
+                            "singular transform",
+                        )
                     })
                 };
                 let scale = |p: &Affine| {
@@ -86,7 +98,10 @@ impl LayeredScene {
                 Ok(Prepared {
                     layer,
                     inverse: [inv(0)?, inv(1)?],
-                    centre: [layer.poses[0].apply(0.0, 0.0), layer.poses[1].apply(0.0, 0.0)],
+                    centre: [
+                        layer.poses[0].apply(0.0, 0.0),
+                        layer.poses[1].apply(0.0, 0.0),
+                    ],
                     bound: [scale(&layer.poses[0]), scale(&layer.poses[1])],
                 })
             })
@@ -94,7 +109,12 @@ impl LayeredScene {
     }
 
     /// The layer visible at image point (x, y) in `frame` (0 or 1), with its local coordinates.
-    fn hit<'a>(prepared: &'a [Prepared<'a>], frame: usize, x: f64, y: f64) -> Option<(&'a Prepared<'a>, f64, f64)> {
+    fn hit<'a>(
+        prepared: &'a [Prepared<'a>],
+        frame: usize,
+        x: f64,
+        y: f64,
+    ) -> Option<(&'a Prepared<'a>, f64, f64)> {
         prepared.iter().rev().find_map(|p| {
             let (cx, cy) = p.centre[frame];
             let b = p.bound[frame];
@@ -126,7 +146,12 @@ impl LayeredScene {
     /// Renders frame `frame` (0 = first, 1 = second) as linear intensity `[C, H, W]`.
     pub fn render(&self, frame: usize) -> Result<Image> {
         let prepared = self.prepare()?;
-        let (w, h, ch, s) = (self.width, self.height, self.channels, self.supersample.max(1));
+        let (w, h, ch, s) = (
+            self.width,
+            self.height,
+            self.channels,
+            self.supersample.max(1),
+        );
         let inv_s2 = 1.0 / (s * s) as f32;
         let rows: Vec<Vec<f32>> = (0..h)
             .into_par_iter()
@@ -202,7 +227,10 @@ impl LayeredScene {
     pub fn records(&self) -> Vec<LayerRecord> {
         self.layers
             .iter()
-            .map(|l| LayerRecord { shape: l.shape.clone(), poses: l.poses })
+            .map(|l| LayerRecord {
+                shape: l.shape.clone(),
+                poses: l.poses,
+            })
             .collect()
     }
 }
@@ -212,13 +240,28 @@ mod tests {
     use super::*;
 
     fn two_layer_scene() -> LayeredScene {
-        let bg = Layer { shape: Shape::Full, fill: Fill::Flat(vec![0.1]), poses: [Affine::IDENTITY; 2] };
-        let square = Layer {
-            shape: Shape::Polygon { vertices: vec![(-4.0, -4.0), (4.0, -4.0), (4.0, 4.0), (-4.0, 4.0)] },
-            fill: Fill::Flat(vec![0.9]),
-            poses: [Affine::translation(10.0, 10.0), Affine::translation(13.0, 8.0)],
+        let bg = Layer {
+            shape: Shape::Full,
+            fill: Fill::Flat(vec![0.1]),
+            poses: [Affine::IDENTITY; 2],
         };
-        LayeredScene { width: 32, height: 24, channels: 1, layers: vec![bg, square], supersample: 1 }
+        let square = Layer {
+            shape: Shape::Polygon {
+                vertices: vec![(-4.0, -4.0), (4.0, -4.0), (4.0, 4.0), (-4.0, 4.0)],
+            },
+            fill: Fill::Flat(vec![0.9]),
+            poses: [
+                Affine::translation(10.0, 10.0),
+                Affine::translation(13.0, 8.0),
+            ],
+        };
+        LayeredScene {
+            width: 32,
+            height: 24,
+            channels: 1,
+            layers: vec![bg, square],
+            supersample: 1,
+        }
     }
 
     #[test]

@@ -54,7 +54,11 @@ fn rocket_outline() -> Vec<(f64, f64)> {
 }
 
 fn dark_background(channels: usize) -> Layer {
-    Layer { shape: Shape::Full, fill: Fill::Flat(vec![0.05; channels]), poses: [Affine::IDENTITY; 2] }
+    Layer {
+        shape: Shape::Full,
+        fill: Fill::Flat(vec![0.05; channels]),
+        poses: [Affine::IDENTITY; 2],
+    }
 }
 
 /// The rocket of Fig. S10a–c: a bright rocket with a darker window on a dark background,
@@ -62,34 +66,68 @@ fn dark_background(channels: usize) -> Layer {
 pub fn rocket(step: RocketStep, channels: usize) -> LayeredScene {
     let (dx, dy) = step.displacement();
     let c = S12_SIZE as f64 / 2.0;
-    let poses = [Affine::translation(c, c), Affine::translation(c + dx, c + dy)];
-    let body = Layer { shape: Shape::Polygon { vertices: rocket_outline() }, fill: Fill::Flat(vec![0.9; channels]), poses };
-    let window = Layer { shape: Shape::Disc { radius: 9.0 }, fill: Fill::Flat(vec![0.35; channels]), poses: [
-        poses[0].compose(&Affine::translation(0.0, -30.0)),
-        poses[1].compose(&Affine::translation(0.0, -30.0)),
-    ] };
-    LayeredScene { width: S12_SIZE, height: S12_SIZE, channels, layers: vec![dark_background(channels), body, window], supersample: 4 }
+    let poses = [
+        Affine::translation(c, c),
+        Affine::translation(c + dx, c + dy),
+    ];
+    let body = Layer {
+        shape: Shape::Polygon {
+            vertices: rocket_outline(),
+        },
+        fill: Fill::Flat(vec![0.9; channels]),
+        poses,
+    };
+    let window = Layer {
+        shape: Shape::Disc { radius: 9.0 },
+        fill: Fill::Flat(vec![0.35; channels]),
+        poses: [
+            poses[0].compose(&Affine::translation(0.0, -30.0)),
+            poses[1].compose(&Affine::translation(0.0, -30.0)),
+        ],
+    };
+    LayeredScene {
+        width: S12_SIZE,
+        height: S12_SIZE,
+        channels,
+        layers: vec![dark_background(channels), body, window],
+        supersample: 4,
+    }
 }
 
 /// A bright disc of `radius` px moving 15 px right (Fig. S10e–g) in a 701×701 frame.
 pub fn disc(radius: f64, channels: usize) -> Result<LayeredScene> {
     if !(radius.is_finite() && radius > 0.0 && radius < S12_SIZE as f64 / 2.0) {
-        return Err(Error::invalid("disc radius", format!("must be in (0, {}), got {radius}", S12_SIZE / 2)));
+        return Err(Error::invalid(
+            "disc radius",
+            format!("must be in (0, {}), got {radius}", S12_SIZE / 2),
+        ));
     }
     let c = S12_SIZE as f64 / 2.0;
     let layer = Layer {
         shape: Shape::Disc { radius },
         fill: Fill::Flat(vec![0.9; channels]),
-        poses: [Affine::translation(c - 7.5, c), Affine::translation(c + 7.5, c)],
+        poses: [
+            Affine::translation(c - 7.5, c),
+            Affine::translation(c + 7.5, c),
+        ],
     };
-    Ok(LayeredScene { width: S12_SIZE, height: S12_SIZE, channels, layers: vec![dark_background(channels), layer], supersample: 4 })
+    Ok(LayeredScene {
+        width: S12_SIZE,
+        height: S12_SIZE,
+        channels,
+        layers: vec![dark_background(channels), layer],
+        supersample: 4,
+    })
 }
 
 /// A dot-grid calibration target: black dots of `radius` px on white, on a square lattice of
 /// `pitch` px centred in a `width × height` frame, anti-aliased (4×4 sub-samples).
 pub fn dot_grid(width: usize, height: usize, pitch: f64, radius: f64) -> Result<Image> {
     if !(pitch.is_finite() && radius.is_finite() && radius > 0.0 && pitch > 2.0 * radius) {
-        return Err(Error::invalid("dot grid", format!("need pitch > 2·radius > 0, got pitch {pitch}, radius {radius}")));
+        return Err(Error::invalid(
+            "dot grid",
+            format!("need pitch > 2·radius > 0, got pitch {pitch}, radius {radius}"),
+        ));
     }
     let mut img = Image::filled(1, height, width, 1.0);
     let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
@@ -100,7 +138,10 @@ pub fn dot_grid(width: usize, height: usize, pitch: f64, radius: f64) -> Result<
                 for sx in 0..4 {
                     let px = x as f64 + (sx as f64 + 0.5) / 4.0 - 0.5 - cx;
                     let py = y as f64 + (sy as f64 + 0.5) / 4.0 - 0.5 - cy;
-                    let (gx, gy) = (px - (px / pitch).round() * pitch, py - (py / pitch).round() * pitch);
+                    let (gx, gy) = (
+                        px - (px / pitch).round() * pitch,
+                        py - (py / pitch).round() * pitch,
+                    );
                     if gx * gx + gy * gy <= radius * radius {
                         covered += 1;
                     }
@@ -133,7 +174,10 @@ mod tests {
         let flow = scene.flow().unwrap();
         assert_eq!(flow.get(350, 343), (15.0, 0.0));
         let moving = flow.u().iter().filter(|&&u| u != 0.0).count();
-        assert!((20..=40).contains(&moving), "{moving} px for a radius-3 disc");
+        assert!(
+            (20..=40).contains(&moving),
+            "{moving} px for a radius-3 disc"
+        );
         assert!(disc(0.0, 1).is_err());
     }
 

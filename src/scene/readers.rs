@@ -43,20 +43,31 @@ pub struct PairPaths {
 /// or holds no pair in the requested layout.
 pub fn discover(root: &Path, layout: Layout) -> Result<Vec<PairPaths>> {
     if !root.is_dir() {
-        return Err(Error::invalid("dataset path", format!("{} is not a folder", root.display())));
+        return Err(Error::invalid(
+            "dataset path",
+            format!("{} is not a folder", root.display()),
+        ));
     }
     let found = match layout {
-        Layout::Auto => [Layout::Chairs, Layout::Sintel, Layout::Middlebury, Layout::Kitti]
-            .into_iter()
-            .map(|l| discover_layout(root, l))
-            .find(|r| matches!(r, Ok(v) if !v.is_empty()))
-            .unwrap_or(Ok(Vec::new()))?,
+        Layout::Auto => [
+            Layout::Chairs,
+            Layout::Sintel,
+            Layout::Middlebury,
+            Layout::Kitti,
+        ]
+        .into_iter()
+        .map(|l| discover_layout(root, l))
+        .find(|r| matches!(r, Ok(v) if !v.is_empty()))
+        .unwrap_or(Ok(Vec::new()))?,
         l => discover_layout(root, l)?,
     };
     if found.is_empty() {
         return Err(Error::invalid(
             "dataset",
-            format!("no image pairs found in {} with layout {layout:?}", root.display()),
+            format!(
+                "no image pairs found in {} with layout {layout:?}",
+                root.display()
+            ),
         ));
     }
     Ok(found)
@@ -91,7 +102,12 @@ fn names(dir: &Path) -> Result<Vec<String>> {
 
 fn subdirs(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|rd| rd.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.is_dir()).collect())
+        .map(|rd| {
+            rd.filter_map(|e| e.ok())
+                .map(|e| e.path())
+                .filter(|p| p.is_dir())
+                .collect()
+        })
         .unwrap_or_default();
     v.sort();
     v
@@ -103,7 +119,11 @@ fn chairs(dir: &Path) -> Result<Vec<PairPaths>> {
     let files = names(dir)?;
     let has = |n: &str| files.iter().any(|f| f == n);
     // (first-image suffix, second-image suffix, flow suffix)
-    let schemes: [(&str, &str, &str); 3] = [("_img1", "_img2", "_flow"), ("-img0", "-img1", "-gt"), ("-img_0", "-img_1", "-flow_01")];
+    let schemes: [(&str, &str, &str); 3] = [
+        ("_img1", "_img2", "_flow"),
+        ("-img0", "-img1", "-gt"),
+        ("-img_0", "-img_1", "-flow_01"),
+    ];
     let mut out = Vec::new();
     for f in &files {
         for (s1, s2, sf) in schemes {
@@ -133,7 +153,9 @@ fn sintel_scene(frames: &Path, flows: &Path, prefix: &str) -> Result<Vec<PairPat
     for f in &files {
         if let Some((stem, ext)) = f.rsplit_once('.')
             && IMAGE_EXTS.contains(&ext)
-            && let Some(n) = stem.strip_prefix("frame_").and_then(|n| n.parse::<u32>().ok())
+            && let Some(n) = stem
+                .strip_prefix("frame_")
+                .and_then(|n| n.parse::<u32>().ok())
         {
             numbered.insert(n, (stem.to_string(), frames.join(f)));
         }
@@ -154,13 +176,23 @@ fn sintel_scene(frames: &Path, flows: &Path, prefix: &str) -> Result<Vec<PairPat
 }
 
 fn sintel(root: &Path) -> Result<Vec<PairPaths>> {
-    let pass = ["clean", "final"].into_iter().map(|p| root.join(p)).find(|p| p.is_dir());
+    let pass = ["clean", "final"]
+        .into_iter()
+        .map(|p| root.join(p))
+        .find(|p| p.is_dir());
     match pass {
         Some(pass) => {
             let mut out = Vec::new();
             for scene in subdirs(&pass) {
-                let name = scene.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-                out.extend(sintel_scene(&scene, &root.join("flow").join(&name), &format!("{name}/"))?);
+                let name = scene
+                    .file_name()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                out.extend(sintel_scene(
+                    &scene,
+                    &root.join("flow").join(&name),
+                    &format!("{name}/"),
+                )?);
             }
             Ok(out)
         }
@@ -191,7 +223,10 @@ fn middlebury(root: &Path) -> Result<Vec<PairPaths>> {
             })
             .collect())
     } else {
-        let name = root.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = root
+            .file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         Ok(middlebury_one(root, root, &name).into_iter().collect())
     }
 }
@@ -199,7 +234,10 @@ fn middlebury(root: &Path) -> Result<Vec<PairPaths>> {
 fn kitti(root: &Path) -> Result<Vec<PairPaths>> {
     let images = root.join("image_2");
     if images.is_dir() {
-        let flow_dir = ["flow_occ", "flow_noc"].into_iter().map(|d| root.join(d)).find(|p| p.is_dir());
+        let flow_dir = ["flow_occ", "flow_noc"]
+            .into_iter()
+            .map(|d| root.join(d))
+            .find(|p| p.is_dir());
         let files = names(&images)?;
         Ok(files
             .iter()
@@ -215,9 +253,18 @@ fn kitti(root: &Path) -> Result<Vec<PairPaths>> {
             })
             .collect())
     } else {
-        let (f1, f2, fl) = (root.join("frame1.png"), root.join("frame2.png"), root.join("flow_gt.png"));
+        let (f1, f2, fl) = (
+            root.join("frame1.png"),
+            root.join("frame2.png"),
+            root.join("flow_gt.png"),
+        );
         Ok((f1.is_file() && f2.is_file())
-            .then(|| PairPaths { name: "000000".into(), img1: f1, img2: f2, flow: fl.is_file().then_some(fl) })
+            .then(|| PairPaths {
+                name: "000000".into(),
+                img1: f1,
+                img2: f2,
+                flow: fl.is_file().then_some(fl),
+            })
             .into_iter()
             .collect())
     }
@@ -236,14 +283,24 @@ mod tests {
     fn finds_each_layout() {
         let d = tempfile::tempdir().unwrap();
         let r = d.path();
-        for f in ["chairs/00001_img1.ppm", "chairs/00001_img2.ppm", "chairs/00001_flow.flo", "chairs/00002_img1.ppm"] {
+        for f in [
+            "chairs/00001_img1.ppm",
+            "chairs/00001_img2.ppm",
+            "chairs/00001_flow.flo",
+            "chairs/00002_img1.ppm",
+        ] {
             touch(&r.join(f));
         }
         let v = discover(&r.join("chairs"), Layout::Auto).unwrap();
         assert_eq!(v.len(), 1);
         assert!(v[0].flow.is_some());
 
-        for f in ["sintel/clean/alley/frame_0001.png", "sintel/clean/alley/frame_0002.png", "sintel/clean/alley/frame_0003.png", "sintel/flow/alley/frame_0001.flo"] {
+        for f in [
+            "sintel/clean/alley/frame_0001.png",
+            "sintel/clean/alley/frame_0002.png",
+            "sintel/clean/alley/frame_0003.png",
+            "sintel/flow/alley/frame_0001.flo",
+        ] {
             touch(&r.join(f));
         }
         let v = discover(&r.join("sintel"), Layout::Sintel).unwrap();
@@ -251,14 +308,23 @@ mod tests {
         assert_eq!(v[0].name, "alley/frame_0001");
         assert!(v[0].flow.is_some() && v[1].flow.is_none());
 
-        for f in ["mb/other-data/Rubber/frame10.png", "mb/other-data/Rubber/frame11.png", "mb/other-gt-flow/Rubber/flow10.flo"] {
+        for f in [
+            "mb/other-data/Rubber/frame10.png",
+            "mb/other-data/Rubber/frame11.png",
+            "mb/other-gt-flow/Rubber/flow10.flo",
+        ] {
             touch(&r.join(f));
         }
         let v = discover(&r.join("mb"), Layout::Auto).unwrap();
         assert_eq!((v.len(), v[0].name.as_str()), (1, "Rubber"));
 
         std::fs::create_dir_all(r.join("empty")).unwrap();
-        assert!(discover(&r.join("empty"), Layout::Auto).unwrap_err().to_string().contains("no image pairs"));
+        assert!(
+            discover(&r.join("empty"), Layout::Auto)
+                .unwrap_err()
+                .to_string()
+                .contains("no image pairs")
+        );
         assert!(discover(&r.join("missing"), Layout::Auto).is_err());
     }
 }

@@ -12,7 +12,10 @@ pub enum Shape {
     /// `|p| ≤ radius`.
     Disc { radius: f64 },
     /// Star-convex blob: `|p| ≤ r(θ) = radius·(1 + Σ_k amp_k cos(k·θ + phase_k))`.
-    Blob { radius: f64, harmonics: Vec<(u32, f64, f64)> },
+    Blob {
+        radius: f64,
+        harmonics: Vec<(u32, f64, f64)>,
+    },
     /// A simple polygon (even-odd rule), vertices in order.
     Polygon { vertices: Vec<(f64, f64)> },
 }
@@ -30,7 +33,11 @@ impl Shape {
                 }
                 let theta = y.atan2(x);
                 let r = radius
-                    * (1.0 + harmonics.iter().map(|&(k, a, p)| a * (k as f64 * theta + p).cos()).sum::<f64>());
+                    * (1.0
+                        + harmonics
+                            .iter()
+                            .map(|&(k, a, p)| a * (k as f64 * theta + p).cos())
+                            .sum::<f64>());
                 r2 <= r * r
             }
             Shape::Polygon { vertices } => {
@@ -72,10 +79,15 @@ mod tests {
     fn containment() {
         assert!(Shape::Disc { radius: 2.0 }.contains(1.0, 1.0));
         assert!(!Shape::Disc { radius: 1.0 }.contains(1.0, 1.0));
-        let square = Shape::Polygon { vertices: vec![(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] };
+        let square = Shape::Polygon {
+            vertices: vec![(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)],
+        };
         assert!(square.contains(0.5, -0.5));
         assert!(!square.contains(1.5, 0.0));
-        let blob = Shape::Blob { radius: 10.0, harmonics: vec![(3, 0.3, 0.0)] };
+        let blob = Shape::Blob {
+            radius: 10.0,
+            harmonics: vec![(3, 0.3, 0.0)],
+        };
         assert!(blob.contains(12.0, 0.0)); // r(0) = 13
         assert!(!blob.contains(-12.0, 0.0)); // r(π) = 7
         assert!((blob.bound_radius() - 13.0).abs() < 1e-12);

@@ -68,17 +68,30 @@ impl TextureRecipe {
         let colour = |r: &mut rng::Rng| -> [f32; 3] {
             [r.random::<f32>(), r.random::<f32>(), r.random::<f32>()]
         };
-        let palette = [colour(&mut r), colour(&mut r), colour(&mut r), colour(&mut r)];
+        let palette = [
+            colour(&mut r),
+            colour(&mut r),
+            colour(&mut r),
+            colour(&mut r),
+        ];
         Self {
             seed: r.random(),
             palette,
             base_period: scale * r.random_range(0.08..0.5),
             octaves: r.random_range(5..8),
             persistence: r.random_range(0.45..0.7),
-            stripe_weight: if r.random::<f32>() < 0.35 { r.random_range(0.2..0.6) } else { 0.0 },
+            stripe_weight: if r.random::<f32>() < 0.35 {
+                r.random_range(0.2..0.6)
+            } else {
+                0.0
+            },
             stripe_period: r.random_range(4.0..24.0),
             stripe_angle: r.random_range(0.0..std::f32::consts::PI),
-            cell_weight: if r.random::<f32>() < 0.35 { r.random_range(0.3..0.8) } else { 0.0 },
+            cell_weight: if r.random::<f32>() < 0.35 {
+                r.random_range(0.3..0.8)
+            } else {
+                0.0
+            },
             cell_period: scale * r.random_range(0.04..0.15),
             contrast: r.random_range(0.6..1.0),
         }
@@ -86,13 +99,24 @@ impl TextureRecipe {
 
     /// Colour at texture coordinate (x, y) in pixels.
     fn colour(&self, x: f32, y: f32) -> [f32; 3] {
-        let t = fbm(self.seed, x, y, self.base_period, self.octaves, self.persistence);
+        let t = fbm(
+            self.seed,
+            x,
+            y,
+            self.base_period,
+            self.octaves,
+            self.persistence,
+        );
         // Stretch the fBm (it concentrates around 0.5) over the palette.
         let mut t = ((t - 0.5) * 2.2 * self.contrast + 0.5).clamp(0.0, 1.0);
         if self.stripe_weight > 0.0 {
             let (s, c) = self.stripe_angle.sin_cos();
             let phase = (x * c + y * s) / self.stripe_period;
-            let square = if phase.rem_euclid(1.0) < 0.5 { 1.0 } else { 0.0 };
+            let square = if phase.rem_euclid(1.0) < 0.5 {
+                1.0
+            } else {
+                0.0
+            };
             t = t * (1.0 - self.stripe_weight) + square * self.stripe_weight;
         }
         let mut shade = 1.0;
@@ -100,7 +124,10 @@ impl TextureRecipe {
             // Voronoi cells on a rotated jittered lattice: polygonal patches with hard edges,
             // each with its own brightness (pebbles, tiles, foliage).
             let (s, c) = self.stripe_angle.sin_cos();
-            let (u, v) = ((x * c - y * s) / self.cell_period, (x * s + y * c) / self.cell_period);
+            let (u, v) = (
+                (x * c - y * s) / self.cell_period,
+                (x * s + y * c) / self.cell_period,
+            );
             let (iu, iv) = (u.floor() as i64, v.floor() as i64);
             let (mut best, mut id) = (f32::INFINITY, (0, 0));
             for dj in -1..=1 {
@@ -137,7 +164,11 @@ pub fn procedural(seed: u64, channels: usize, height: usize, width: usize, scale
     let mut data = vec![0.0f32; channels * n];
     let rows: Vec<Vec<[f32; 3]>> = (0..height)
         .into_par_iter()
-        .map(|y| (0..width).map(|x| recipe.colour(x as f32, y as f32)).collect())
+        .map(|y| {
+            (0..width)
+                .map(|x| recipe.colour(x as f32, y as f32))
+                .collect()
+        })
         .collect();
     for (y, row) in rows.iter().enumerate() {
         for (x, rgb) in row.iter().enumerate() {
@@ -152,7 +183,8 @@ pub fn procedural(seed: u64, channels: usize, height: usize, width: usize, scale
         }
     }
     // Lengths match by construction.
-    Image::from_vec(channels, height, width, data).unwrap_or_else(|_| Image::zeros(channels, height, width))
+    Image::from_vec(channels, height, width, data)
+        .unwrap_or_else(|_| Image::zeros(channels, height, width))
 }
 
 /// Bilinear sample of channel `c` at (x, y) in pixel units, mirrored outside the raster.
@@ -184,7 +216,10 @@ mod tests {
         assert!(a.data().iter().all(|v| (0.0..=1.0).contains(v)));
         // Not flat: a real spread of values in each texture.
         for img in [&a, &c] {
-            let (lo, hi) = img.data().iter().fold((1.0f32, 0.0f32), |(l, h), &v| (l.min(v), h.max(v)));
+            let (lo, hi) = img
+                .data()
+                .iter()
+                .fold((1.0f32, 0.0f32), |(l, h), &v| (l.min(v), h.max(v)));
             assert!(hi - lo > 0.2, "flat texture {lo}..{hi}");
         }
         let grey = procedural(11, 1, 8, 8, 16.0);

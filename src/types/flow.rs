@@ -78,7 +78,10 @@ impl Flow {
     /// True where both components are finite.
     pub fn valid_mask(&self) -> Vec<bool> {
         let (u, v) = (self.u(), self.v());
-        u.iter().zip(v).map(|(a, b)| a.is_finite() && b.is_finite()).collect()
+        u.iter()
+            .zip(v)
+            .map(|(a, b)| a.is_finite() && b.is_finite())
+            .collect()
     }
 
     /// Largest magnitude over finite vectors (0 for an empty or all-unknown field).

@@ -117,7 +117,10 @@ impl Image {
                 let (c, y, x) = (i / n, (i % n) / self.width, i % self.width);
                 Err(Error::invalid(
                     what,
-                    format!("non-finite value {} at channel {c}, row {y}, column {x}", self.data[i]),
+                    format!(
+                        "non-finite value {} at channel {c}, row {y}, column {x}",
+                        self.data[i]
+                    ),
                 ))
             }
         }

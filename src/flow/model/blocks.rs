@@ -10,7 +10,14 @@ use super::config::NormKind;
 
 /// A k×k convolution with `stride` and `dilation`, padded so that stride 1 keeps the size.
 /// Padding is explicit: burn's `Same` ignores dilation.
-pub fn conv(cin: usize, cout: usize, k: usize, stride: usize, dilation: usize, device: &Device) -> Conv2d {
+pub fn conv(
+    cin: usize,
+    cout: usize,
+    k: usize,
+    stride: usize,
+    dilation: usize,
+    device: &Device,
+) -> Conv2d {
     let p = dilation * (k - 1) / 2;
     Conv2dConfig::new([cin, cout], [k, k])
         .with_stride([stride, stride])
@@ -29,9 +36,18 @@ pub struct Norm {
 impl Norm {
     pub fn new(kind: NormKind, channels: usize, device: &Device) -> Self {
         match kind {
-            NormKind::Instance => Self { instance: Some(InstanceNormConfig::new(channels).init(device)), group: None },
-            NormKind::Group => Self { instance: None, group: Some(GroupNormConfig::new(8.min(channels), channels).init(device)) },
-            NormKind::None => Self { instance: None, group: None },
+            NormKind::Instance => Self {
+                instance: Some(InstanceNormConfig::new(channels).init(device)),
+                group: None,
+            },
+            NormKind::Group => Self {
+                instance: None,
+                group: Some(GroupNormConfig::new(8.min(channels), channels).init(device)),
+            },
+            NormKind::None => Self {
+                instance: None,
+                group: None,
+            },
         }
     }
 

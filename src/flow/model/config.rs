@@ -90,7 +90,10 @@ impl MmsConfig {
         match name {
             "mms" => Ok(Self::mms()),
             "mms-small" => Ok(Self::mms_small()),
-            other => Err(Error::invalid("model", format!("unknown model {other:?}; use mms or mms-small"))),
+            other => Err(Error::invalid(
+                "model",
+                format!("unknown model {other:?}; use mms or mms-small"),
+            )),
         }
     }
 
@@ -101,21 +104,39 @@ impl MmsConfig {
             ("feature_dim", self.feature_dim > 0),
             ("hidden_dim", self.hidden_dim > 0),
             ("context_dim", self.context_dim > 0),
-            ("motion_dims", self.motion_dims.iter().all(|&d| d > 0) && self.motion_dims[2] > 2),
+            (
+                "motion_dims",
+                self.motion_dims.iter().all(|&d| d > 0) && self.motion_dims[2] > 2,
+            ),
             ("head_dim", self.head_dim > 0),
             ("corr_levels", (1..=6).contains(&self.corr_levels)),
             ("corr_radius", (1..=8).contains(&self.corr_radius)),
             ("iters", (1..=64).contains(&self.iters)),
-            ("dilations", self.dilations.iter().all(|&d| (1..=64).contains(&d))),
+            (
+                "dilations",
+                self.dilations.iter().all(|&d| (1..=64).contains(&d)),
+            ),
         ];
         for (name, ok) in positive {
             if !ok {
                 return Err(Error::invalid(format!("model.{name}"), "out of range"));
             }
         }
-        for (name, norm, dims) in [("feature_norm", self.feature_norm, self.feature_dim), ("context_norm", self.context_norm, self.hidden_dim + self.context_dim)] {
-            if norm == NormKind::Group && (self.encoder_dims.iter().any(|d| d % 8 != 0) || dims % 8 != 0) {
-                return Err(Error::invalid(format!("model.{name}"), "group norm needs every width divisible by 8"));
+        for (name, norm, dims) in [
+            ("feature_norm", self.feature_norm, self.feature_dim),
+            (
+                "context_norm",
+                self.context_norm,
+                self.hidden_dim + self.context_dim,
+            ),
+        ] {
+            if norm == NormKind::Group
+                && (self.encoder_dims.iter().any(|d| d % 8 != 0) || dims % 8 != 0)
+            {
+                return Err(Error::invalid(
+                    format!("model.{name}"),
+                    "group norm needs every width divisible by 8",
+                ));
             }
         }
         Ok(())

@@ -42,7 +42,14 @@ impl CorrPyramid {
                 cur = avg_pool2d(cur, AvgPoolOptions::new(k).with_stride(k));
             }
         }
-        Self { levels, sizes, batch: b, height: h, width: w, radius }
+        Self {
+            levels,
+            sizes,
+            batch: b,
+            height: h,
+            width: w,
+            radius,
+        }
     }
 
     /// Looks up every level around `coords`, the (x, y) position in frame 2 of every pixel.
@@ -81,16 +88,33 @@ fn window_lookup(level: Tensor<3>, c: Tensor<2>, hl: usize, wl: usize, r: usize)
     let fy = (y - yf.clone()).reshape([n, 1, 1]);
     let ix = xf.int().sub_scalar(r as i64) + offs.clone(); // [N, kk]
     let iy = yf.int().sub_scalar(r as i64) + offs;
-    let vx = ix.clone().greater_equal_elem(0).bool_and(ix.clone().lower_elem(wl as i64)).float();
-    let vy = iy.clone().greater_equal_elem(0).bool_and(iy.clone().lower_elem(hl as i64)).float();
-    let idx = (iy.clamp(0, hl as i64 - 1).reshape([n, kk, 1]).mul_scalar(wl as i64)
+    let vx = ix
+        .clone()
+        .greater_equal_elem(0)
+        .bool_and(ix.clone().lower_elem(wl as i64))
+        .float();
+    let vy = iy
+        .clone()
+        .greater_equal_elem(0)
+        .bool_and(iy.clone().lower_elem(hl as i64))
+        .float();
+    let idx = (iy
+        .clamp(0, hl as i64 - 1)
+        .reshape([n, kk, 1])
+        .mul_scalar(wl as i64)
         + ix.clamp(0, wl as i64 - 1).reshape([n, 1, kk]))
     .reshape([n, kk * kk]);
-    let p = level.reshape([n, hl * wl]).gather(1, idx).reshape([n, kk, kk])
+    let p = level
+        .reshape([n, hl * wl])
+        .gather(1, idx)
+        .reshape([n, kk, kk])
         * (vy.reshape([n, kk, 1]) * vx.reshape([n, 1, kk]));
     let s = |i: usize, j: usize| p.clone().slice([0..n, i..i + k, j..j + k]);
     let (gx, gy) = (fx.clone().neg() + 1.0, fy.clone().neg() + 1.0);
-    s(0, 0) * (gy.clone() * gx.clone()) + s(0, 1) * (gy * fx.clone()) + s(1, 0) * (fy.clone() * gx) + s(1, 1) * (fy * fx)
+    s(0, 0) * (gy.clone() * gx.clone())
+        + s(0, 1) * (gy * fx.clone())
+        + s(1, 0) * (fy.clone() * gx)
+        + s(1, 1) * (fy * fx)
 }
 
 #[cfg(test)]
@@ -102,15 +126,26 @@ mod tests {
         let dev = Device::flex();
         // B=1, C=1, H=W=4: f1 = 1 everywhere, f2 = x index, so corr(p, q) = q.x.
         let f1 = Tensor::<4>::ones([1, 1, 4, 4], &dev);
-        let f2 = Tensor::<1, Int>::arange(0..4, &dev).float().reshape([1, 1, 1, 4]).expand([1, 1, 4, 4]);
+        let f2 = Tensor::<1, Int>::arange(0..4, &dev)
+            .float()
+            .reshape([1, 1, 1, 4])
+            .expand([1, 1, 4, 4]);
         let pyr = CorrPyramid::new(f1, f2, 2, 1);
         // Every pixel looks at (x, y) = (1.5, 1): half-way between columns 1 and 2.
-        let coords = Tensor::<4>::zeros([1, 2, 4, 4], &dev) + Tensor::<1>::from_floats([1.5, 1.0], &dev).reshape([1, 2, 1, 1]);
+        let coords = Tensor::<4>::zeros([1, 2, 4, 4], &dev)
+            + Tensor::<1>::from_floats([1.5, 1.0], &dev).reshape([1, 2, 1, 1]);
         let out = pyr.lookup(coords); // [1, 2·9, 4, 4]
         assert_eq!(out.dims(), [1, 18, 4, 4]);
-        let v: Vec<f32> = out.slice([0..1, 0..9, 0..1, 0..1]).into_data().try_to_vec::<f32>().unwrap();
+        let v: Vec<f32> = out
+            .slice([0..1, 0..9, 0..1, 0..1])
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
         // Window row dy = 0 (index 3..6) samples x = 0.5, 1.5, 2.5.
-        assert!((v[3] - 0.5).abs() < 1e-5 && (v[4] - 1.5).abs() < 1e-5 && (v[5] - 2.5).abs() < 1e-5, "{v:?}");
+        assert!(
+            (v[3] - 0.5).abs() < 1e-5 && (v[4] - 1.5).abs() < 1e-5 && (v[5] - 2.5).abs() < 1e-5,
+            "{v:?}"
+        );
         // Far outside: zero padding, finite.
         let far = Tensor::<4>::zeros([1, 2, 4, 4], &dev).add_scalar(1e4);
         let o: Vec<f32> = pyr.lookup(far).into_data().try_to_vec::<f32>().unwrap();

@@ -31,7 +31,10 @@ pub struct PyramidPooling {
 
 impl PyramidPooling {
     pub fn new(channels: usize, norm: NormKind, device: &Device) -> Self {
-        Self { fuse: conv(4 * channels, channels, 3, 1, 1, device), norm: Norm::new(norm, channels, device) }
+        Self {
+            fuse: conv(4 * channels, channels, 3, 1, 1, device),
+            norm: Norm::new(norm, channels, device),
+        }
     }
 
     /// # Shapes
@@ -42,7 +45,10 @@ impl PyramidPooling {
         for m in 1..=3 {
             branches.push(resize(adaptive_avg_pool2d(x.clone(), [m, m]), h, w));
         }
-        relu(self.norm.forward(self.fuse.forward(Tensor::cat(branches, 1)))) // [B, 4C, H, W] → [B, C, H, W]
+        relu(
+            self.norm
+                .forward(self.fuse.forward(Tensor::cat(branches, 1))),
+        ) // [B, 4C, H, W] → [B, C, H, W]
     }
 }
 
@@ -59,10 +65,19 @@ pub struct Daspp {
 }
 
 impl Daspp {
-    pub fn new(cin: usize, cout: usize, dilations: &[usize], norm: NormKind, device: &Device) -> Self {
+    pub fn new(
+        cin: usize,
+        cout: usize,
+        dilations: &[usize],
+        norm: NormKind,
+        device: &Device,
+    ) -> Self {
         Self {
             point: conv(cin, cin, 1, 1, 1, device),
-            atrous: dilations.iter().map(|&d| conv(cin, cin, 3, 1, d, device)).collect(),
+            atrous: dilations
+                .iter()
+                .map(|&d| conv(cin, cin, 3, 1, d, device))
+                .collect(),
             global: conv(cin, cin, 1, 1, 1, device),
             fuse: conv(cin * (dilations.len() + 2), cout, 1, 1, 1, device),
             norm: Norm::new(norm, cout, device),
@@ -79,7 +94,8 @@ impl Daspp {
         }
         let g = relu(self.global.forward(x.mean_dim(2).mean_dim(3))); // [B, C, 1, 1]
         branches.push(g.expand([b, c, h, w]));
-        self.norm.forward(self.fuse.forward(Tensor::cat(branches, 1)))
+        self.norm
+            .forward(self.fuse.forward(Tensor::cat(branches, 1)))
     }
 }
 
@@ -96,14 +112,29 @@ pub struct Dsmsce {
 }
 
 impl Dsmsce {
-    pub fn new(dims: [usize; 3], out: usize, dilations: &[usize], norm: NormKind, device: &Device) -> Self {
+    pub fn new(
+        dims: [usize; 3],
+        out: usize,
+        dilations: &[usize],
+        norm: NormKind,
+        device: &Device,
+    ) -> Self {
         let [d1, d2, d3] = dims;
         Self {
             stem: conv(3, d1, 7, 2, 1, device),
             stem_norm: Norm::new(norm, d1, device),
-            stage1: vec![ResidualBlock::new(d1, d1, 1, norm, device), ResidualBlock::new(d1, d1, 1, norm, device)],
-            stage2: vec![ResidualBlock::new(d1, d2, 2, norm, device), ResidualBlock::new(d2, d2, 1, norm, device)],
-            stage3: vec![ResidualBlock::new(d2, d3, 2, norm, device), ResidualBlock::new(d3, d3, 1, norm, device)],
+            stage1: vec![
+                ResidualBlock::new(d1, d1, 1, norm, device),
+                ResidualBlock::new(d1, d1, 1, norm, device),
+            ],
+            stage2: vec![
+                ResidualBlock::new(d1, d2, 2, norm, device),
+                ResidualBlock::new(d2, d2, 1, norm, device),
+            ],
+            stage3: vec![
+                ResidualBlock::new(d2, d3, 2, norm, device),
+                ResidualBlock::new(d3, d3, 1, norm, device),
+            ],
             pyramid: PyramidPooling::new(d3, norm, device),
             daspp: Daspp::new(d3, out, dilations, norm, device),
         }

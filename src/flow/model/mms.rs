@@ -26,7 +26,13 @@ impl Mms {
     /// A freshly initialised network on `device`.
     pub fn new(cfg: &MmsConfig, device: &Device) -> Self {
         Self {
-            feature_encoder: Dsmsce::new(cfg.encoder_dims, cfg.feature_dim, &cfg.dilations, cfg.feature_norm, device),
+            feature_encoder: Dsmsce::new(
+                cfg.encoder_dims,
+                cfg.feature_dim,
+                &cfg.dilations,
+                cfg.feature_norm,
+                device,
+            ),
             context_encoder: Dsmsce::new(
                 cfg.encoder_dims,
                 cfg.hidden_dim + cfg.context_dim,
@@ -47,14 +53,22 @@ impl Mms {
     /// # Shapes
     /// `image1`, `image2`: `[B, 3, H, W]` in [0, 1], H and W multiples of 8 →
     /// `iters` (or 1) × `[B, 2, H, W]`
-    pub fn forward(&self, image1: Tensor<4>, image2: Tensor<4>, iters: usize, all: bool) -> Vec<Tensor<4>> {
+    pub fn forward(
+        &self,
+        image1: Tensor<4>,
+        image2: Tensor<4>,
+        iters: usize,
+        all: bool,
+    ) -> Vec<Tensor<4>> {
         let [b, _, h, w] = image1.dims();
         let (h8, w8) = (h / 8, w / 8);
         let device = image1.device();
         // [0, 1] → [−1, 1], as RAFT normalises its inputs.
         let norm = |x: Tensor<4>| x.mul_scalar(2.0).sub_scalar(1.0);
         // Both frames through the shared feature encoder in one batch.
-        let features = self.feature_encoder.forward(Tensor::cat(vec![norm(image1.clone()), norm(image2)], 0));
+        let features = self
+            .feature_encoder
+            .forward(Tensor::cat(vec![norm(image1.clone()), norm(image2)], 0));
         let f1 = features.clone().narrow(0, 0, b); // [B, C, H/8, W/8]
         let f2 = features.narrow(0, b, b);
         let corr = CorrPyramid::new(f1, f2, self.corr_levels, self.corr_radius);
@@ -73,7 +87,9 @@ impl Mms {
             let window = corr.lookup(coords1.clone());
             let flow = coords1.clone() - coords0.clone();
             let last = i + 1 == iters;
-            let (h_new, delta, mask) = self.update.forward(hidden, context.clone(), window, flow, all || last);
+            let (h_new, delta, mask) =
+                self.update
+                    .forward(hidden, context.clone(), window, flow, all || last);
             hidden = h_new;
             coords1 = coords1 + delta;
             if let Some(mask) = mask {
@@ -89,7 +105,13 @@ impl Mms {
 /// # Shapes
 /// → `[B, 2, H, W]`
 pub fn coordinate_grid(b: usize, h: usize, w: usize, device: &Device) -> Tensor<4> {
-    let xs = Tensor::<1, Int>::arange(0..w as i64, device).float().reshape([1, 1, 1, w]).expand([b, 1, h, w]);
-    let ys = Tensor::<1, Int>::arange(0..h as i64, device).float().reshape([1, 1, h, 1]).expand([b, 1, h, w]);
+    let xs = Tensor::<1, Int>::arange(0..w as i64, device)
+        .float()
+        .reshape([1, 1, 1, w])
+        .expand([b, 1, h, w]);
+    let ys = Tensor::<1, Int>::arange(0..h as i64, device)
+        .float()
+        .reshape([1, 1, h, 1])
+        .expand([b, 1, h, w]);
     Tensor::cat(vec![xs, ys], 1)
 }

@@ -19,11 +19,21 @@ impl InputPadder {
     pub fn new(height: usize, width: usize, min_side: usize) -> Self {
         let target = |n: usize| n.max(min_side).div_ceil(8) * 8;
         let (ph, pw) = (target(height) - height, target(width) - width);
-        Self { height, width, top: ph / 2, bottom: ph - ph / 2, left: pw / 2, right: pw - pw / 2 }
+        Self {
+            height,
+            width,
+            top: ph / 2,
+            bottom: ph - ph / 2,
+            left: pw / 2,
+            right: pw - pw / 2,
+        }
     }
 
     pub fn padded_size(&self) -> (usize, usize) {
-        (self.height + self.top + self.bottom, self.width + self.left + self.right)
+        (
+            self.height + self.top + self.bottom,
+            self.width + self.left + self.right,
+        )
     }
 
     /// # Shapes
@@ -48,7 +58,8 @@ impl InputPadder {
     /// # Shapes
     /// `[B, C, H', W']` → `[B, C, H, W]`
     pub fn unpad(&self, x: Tensor<4>) -> Tensor<4> {
-        x.narrow(2, self.top, self.height).narrow(3, self.left, self.width)
+        x.narrow(2, self.top, self.height)
+            .narrow(3, self.left, self.width)
     }
 }
 

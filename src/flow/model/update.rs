@@ -109,10 +109,16 @@ impl UpdateBlock {
         with_mask: bool,
     ) -> (Tensor<4>, Tensor<4>, Option<Tensor<4>>) {
         let motion = self.motion.forward(corr, flow);
-        let hidden = self.gru.forward(hidden, Tensor::cat(vec![context, motion], 1));
+        let hidden = self
+            .gru
+            .forward(hidden, Tensor::cat(vec![context, motion], 1));
         let delta = self.flow2.forward(relu(self.flow1.forward(hidden.clone())));
         // RAFT scales the mask logits by 1/4 to balance their gradients against the flow's.
-        let mask = with_mask.then(|| self.mask2.forward(relu(self.mask1.forward(hidden.clone()))).mul_scalar(0.25));
+        let mask = with_mask.then(|| {
+            self.mask2
+                .forward(relu(self.mask1.forward(hidden.clone())))
+                .mul_scalar(0.25)
+        });
         (hidden, delta, mask)
     }
 }

@@ -12,8 +12,12 @@ use burn::tensor::ops::UnfoldOptions;
 pub fn convex_upsample(flow: Tensor<4>, mask: Tensor<4>) -> Tensor<4> {
     let [b, _, h, w] = flow.dims();
     let mask = softmax(mask.reshape([b, 1, 9, 64, h * w]), 2);
-    let neighbours = unfold4d(flow.mul_scalar(8.0), [3, 3], UnfoldOptions::new([1, 1], [1, 1], [1, 1]))
-        .reshape([b, 2, 9, 1, h * w]); // [B, 2·9, H·W] → [B, 2, 9, 1, H·W]
+    let neighbours = unfold4d(
+        flow.mul_scalar(8.0),
+        [3, 3],
+        UnfoldOptions::new([1, 1], [1, 1], [1, 1]),
+    )
+    .reshape([b, 2, 9, 1, h * w]); // [B, 2·9, H·W] → [B, 2, 9, 1, H·W]
     (mask * neighbours)
         .sum_dim(2) // [B, 2, 1, 64, H·W]
         .reshape([b, 2, 8, 8, h, w])
@@ -28,14 +32,25 @@ mod tests {
     #[test]
     fn constant_flow_upsamples_to_eight_times_itself() {
         let dev = Device::flex();
-        let flow = Tensor::<4>::ones([1, 2, 3, 4], &dev) * Tensor::<1>::from_floats([1.5, -0.5], &dev).reshape([1, 2, 1, 1]);
-        let mask = Tensor::<4>::random([1, 576, 3, 4], burn::tensor::Distribution::Normal(0.0, 3.0), &dev);
+        let flow = Tensor::<4>::ones([1, 2, 3, 4], &dev)
+            * Tensor::<1>::from_floats([1.5, -0.5], &dev).reshape([1, 2, 1, 1]);
+        let mask = Tensor::<4>::random(
+            [1, 576, 3, 4],
+            burn::tensor::Distribution::Normal(0.0, 3.0),
+            &dev,
+        );
         let up = convex_upsample(flow, mask);
         assert_eq!(up.dims(), [1, 2, 24, 32]);
         // Interior cells only: at the border the zero padding of unfold enters the combination.
-        let v: Vec<f32> = up.slice([0..1, 0..2, 8..16, 8..24]).into_data().try_to_vec::<f32>().unwrap();
+        let v: Vec<f32> = up
+            .slice([0..1, 0..2, 8..16, 8..24])
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
         let (u, vv) = v.split_at(v.len() / 2);
-        assert!(u.iter().all(|x| (x - 12.0).abs() < 1e-4) && vv.iter().all(|x| (x + 4.0).abs() < 1e-4));
+        assert!(
+            u.iter().all(|x| (x - 12.0).abs() < 1e-4) && vv.iter().all(|x| (x + 4.0).abs() < 1e-4)
+        );
     }
 
     #[test]
@@ -43,7 +58,10 @@ mod tests {
         let dev = Device::flex();
         let flow = Tensor::<4>::ones([1, 2, 2, 2], &dev);
         let mask = Tensor::<4>::ones([1, 576, 2, 2], &dev).mul_scalar(1e30);
-        let v: Vec<f32> = convex_upsample(flow, mask).into_data().try_to_vec::<f32>().unwrap();
+        let v: Vec<f32> = convex_upsample(flow, mask)
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
         assert!(v.iter().all(|x| x.is_finite()));
     }
 }

@@ -35,11 +35,18 @@ pub fn write(run: &Path, state: &CheckpointState, model: &[u8], optimizer: &[u8]
     let d = dir(run);
     io::write_bytes_atomic(&d.join(&state.model_file), model)?;
     io::write_bytes_atomic(&d.join(&state.optimizer_file), optimizer)?;
-    let json = serde_json::to_string_pretty(state).map_err(|e| Error::invalid("checkpoint", e.to_string()))?;
+    let json = serde_json::to_string_pretty(state)
+        .map_err(|e| Error::invalid("checkpoint", e.to_string()))?;
     io::write_bytes_atomic(&d.join("state.json"), json.as_bytes())?;
-    for entry in std::fs::read_dir(&d).map_err(|e| Error::io(&d, e))?.flatten() {
+    for entry in std::fs::read_dir(&d)
+        .map_err(|e| Error::io(&d, e))?
+        .flatten()
+    {
         let name = entry.file_name().to_string_lossy().into_owned();
-        if (name.starts_with("model-") || name.starts_with("optim-")) && name != state.model_file && name != state.optimizer_file {
+        if (name.starts_with("model-") || name.starts_with("optim-"))
+            && name != state.model_file
+            && name != state.optimizer_file
+        {
             let _ = std::fs::remove_file(entry.path());
         }
     }
@@ -56,7 +63,8 @@ pub fn read(run: &Path) -> Result<Option<Loaded>> {
         return Ok(None);
     }
     let text = std::fs::read_to_string(&p).map_err(|e| Error::io(&p, e))?;
-    let state: CheckpointState = serde_json::from_str(&text).map_err(|e| Error::format(&p, e.to_string()))?;
+    let state: CheckpointState =
+        serde_json::from_str(&text).map_err(|e| Error::format(&p, e.to_string()))?;
     let model = io::read_bytes(&dir(run).join(&state.model_file))?;
     let optim = io::read_bytes(&dir(run).join(&state.optimizer_file))?;
     Ok(Some((state, model, optim)))

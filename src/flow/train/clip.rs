@@ -30,7 +30,8 @@ struct Scale<'a> {
 impl ModuleVisitor for Scale<'_> {
     fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
         if let Some(g) = self.grads.remove::<D>(param.id) {
-            self.grads.register::<D>(param.id, g.mul_scalar(self.factor));
+            self.grads
+                .register::<D>(param.id, g.mul_scalar(self.factor));
         }
     }
 }
@@ -38,11 +39,18 @@ impl ModuleVisitor for Scale<'_> {
 /// Clips `grads` of `module` to a global norm of `max_norm`; returns the norm before clipping
 /// (NaN or ∞ when a gradient is not finite, in which case nothing is scaled).
 pub fn clip_global_norm<M: Module>(module: &M, grads: &mut GradientsParams, max_norm: f64) -> f64 {
-    let mut v = SquaredNorm { grads, sum: 0.0, ids: Vec::new() };
+    let mut v = SquaredNorm {
+        grads,
+        sum: 0.0,
+        ids: Vec::new(),
+    };
     module.visit(&mut v);
     let norm = v.sum.sqrt();
     if norm.is_finite() && norm > max_norm {
-        let mut s = Scale { grads, factor: (max_norm / (norm + 1e-6)) as f32 };
+        let mut s = Scale {
+            grads,
+            factor: (max_norm / (norm + 1e-6)) as f32,
+        };
         module.visit(&mut s);
     }
     norm

@@ -73,8 +73,14 @@ impl TrainConfig {
     /// Reads a JSON config, naming the file on error.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config { path: path.into(), reason: e.to_string() })?;
-        cfg.validate().map_err(|e| Error::Config { path: path.into(), reason: e.to_string() })?;
+        let cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
+            path: path.into(),
+            reason: e.to_string(),
+        })?;
+        cfg.validate().map_err(|e| Error::Config {
+            path: path.into(),
+            reason: e.to_string(),
+        })?;
         Ok(cfg)
     }
 
@@ -92,16 +98,28 @@ impl TrainConfig {
             ("iters", (1..=64).contains(&self.iters)),
             ("lr", self.lr.is_finite() && self.lr > 0.0 && self.lr <= 1.0),
             ("pct_start", (0.0..1.0).contains(&self.pct_start)),
-            ("weight_decay", self.weight_decay.is_finite() && self.weight_decay >= 0.0),
+            (
+                "weight_decay",
+                self.weight_decay.is_finite() && self.weight_decay >= 0.0,
+            ),
             ("clip", self.clip.is_finite() && self.clip > 0.0),
             ("rho", self.rho > 0.0 && self.rho <= 1.0),
-            ("val_fraction", self.val_fraction > 0.0 && self.val_fraction < 1.0),
-            ("val_every/checkpoint_every", self.val_every > 0 && self.checkpoint_every > 0),
+            (
+                "val_fraction",
+                self.val_fraction > 0.0 && self.val_fraction < 1.0,
+            ),
+            (
+                "val_every/checkpoint_every",
+                self.val_every > 0 && self.checkpoint_every > 0,
+            ),
             ("val_iters", (1..=64).contains(&self.val_iters)),
         ];
         for (name, ok) in checks {
             if !ok {
-                return Err(Error::invalid(format!("train.{name}"), "out of range (crop sides must be multiples of 8, at least 64)"));
+                return Err(Error::invalid(
+                    format!("train.{name}"),
+                    "out of range (crop sides must be multiples of 8, at least 64)",
+                ));
             }
         }
         Ok(())

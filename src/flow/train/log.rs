@@ -48,14 +48,29 @@ fn parse_row(line: &str) -> Option<LogRow> {
 
 fn format_row(r: &LogRow) -> String {
     let opt = |v: Option<f64>| v.map(|x| format!("{x:.5}")).unwrap_or_default();
-    format!("{},{:.6e},{:.5},{:.5},{:.4},{:.1},{},{}", r.step, r.lr, r.loss, r.epe, r.grad_norm, r.ms_per_step, opt(r.val_epe), opt(r.val_px1))
+    format!(
+        "{},{:.6e},{:.5},{:.5},{:.4},{:.1},{},{}",
+        r.step,
+        r.lr,
+        r.loss,
+        r.epe,
+        r.grad_norm,
+        r.ms_per_step,
+        opt(r.val_epe),
+        opt(r.val_px1)
+    )
 }
 
 impl TrainLog {
     /// Opens the log, keeping the rows up to `keep_until` (the resumed step) and rewriting it.
     pub fn open(path: &Path, keep_until: usize) -> Result<Self> {
         let rows: Vec<LogRow> = match std::fs::read_to_string(path) {
-            Ok(text) => text.lines().skip(1).filter_map(parse_row).filter(|r| r.step <= keep_until).collect(),
+            Ok(text) => text
+                .lines()
+                .skip(1)
+                .filter_map(parse_row)
+                .filter(|r| r.step <= keep_until)
+                .collect(),
             Err(_) => Vec::new(),
         };
         let mut text = String::from(HEADER);
@@ -65,12 +80,18 @@ impl TrainLog {
             text.push('\n');
         }
         crate::io::write_bytes_atomic(path, text.as_bytes())?;
-        Ok(Self { path: path.to_path_buf(), rows })
+        Ok(Self {
+            path: path.to_path_buf(),
+            rows,
+        })
     }
 
     /// Appends one row to the file and to memory.
     pub fn append(&mut self, row: &LogRow) -> Result<()> {
-        let mut f = std::fs::OpenOptions::new().append(true).open(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        let mut f = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&self.path)
+            .map_err(|e| Error::io(&self.path, e))?;
         writeln!(f, "{}", format_row(row)).map_err(|e| Error::io(&self.path, e))?;
         self.rows.push(row.clone());
         Ok(())
@@ -91,18 +112,44 @@ impl TrainLog {
                 .map(|i| {
                     let lo = i.saturating_sub(w - 1);
                     let win = &self.rows[lo..=i];
-                    (self.rows[i].step as f64, win.iter().map(f).sum::<f64>() / win.len() as f64)
+                    (
+                        self.rows[i].step as f64,
+                        win.iter().map(f).sum::<f64>() / win.len() as f64,
+                    )
                 })
                 .collect()
         };
-        let val: Vec<(f64, f64)> = self.rows.iter().filter_map(|r| r.val_epe.map(|v| (r.step as f64, v))).collect();
+        let val: Vec<(f64, f64)> = self
+            .rows
+            .iter()
+            .filter_map(|r| r.val_epe.map(|v| (r.step as f64, v)))
+            .collect();
         let mut series = vec![
-            Series { name: "train loss (Eq. S16)".into(), points: smooth(&|r| r.loss), markers: false },
-            Series { name: "train EPE (px)".into(), points: smooth(&|r| r.epe), markers: false },
+            Series {
+                name: "train loss (Eq. S16)".into(),
+                points: smooth(&|r| r.loss),
+                markers: false,
+            },
+            Series {
+                name: "train EPE (px)".into(),
+                points: smooth(&|r| r.epe),
+                markers: false,
+            },
         ];
         if !val.is_empty() {
-            series.push(Series { name: "validation EPE (px)".into(), points: val, markers: true });
+            series.push(Series {
+                name: "validation EPE (px)".into(),
+                points: val,
+                markers: true,
+            });
         }
-        Chart { title: "MMS training".into(), x_label: "step".into(), y_label: "loss / EPE".into(), series, log_y: true }.write_png(path, 800, 500)
+        Chart {
+            title: "MMS training".into(),
+            x_label: "step".into(),
+            y_label: "loss / EPE".into(),
+            series,
+            log_y: true,
+        }
+        .write_png(path, 800, 500)
     }
 }

@@ -64,12 +64,18 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let (mut config, start) = match (&existing, opts.resume) {
         (Some((state, _, _)), true) => (state.config.clone(), state.step),
         (None, true) => {
-            return Err(Error::invalid("--resume", format!("{} has no checkpoint to resume", opts.out.display())));
+            return Err(Error::invalid(
+                "--resume",
+                format!("{} has no checkpoint to resume", opts.out.display()),
+            ));
         }
         (Some(_), false) => {
             return Err(Error::invalid(
                 "--out",
-                format!("{} already holds a run; pass --resume to continue it or choose another folder", opts.out.display()),
+                format!(
+                    "{} already holds a run; pass --resume to continue it or choose another folder",
+                    opts.out.display()
+                ),
             ));
         }
         (None, false) => (config, 0),
@@ -78,7 +84,10 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         if opts.resume && s != config.steps {
             return Err(Error::invalid(
                 "--steps",
-                format!("the run's schedule spans {} steps; resuming with {s} would change it", config.steps),
+                format!(
+                    "the run's schedule spans {} steps; resuming with {s} would change it",
+                    config.steps
+                ),
             ));
         }
         config.steps = s;
@@ -92,7 +101,13 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     if a.height() < config.crop[0] || a.width() < config.crop[1] {
         return Err(Error::invalid(
             "train.crop",
-            format!("{:?} is larger than the {}x{} images of {}", config.crop, a.height(), a.width(), opts.data.display()),
+            format!(
+                "{:?} is larger than the {}x{} images of {}",
+                config.crop,
+                a.height(),
+                a.width(),
+                opts.data.display()
+            ),
         ));
     }
 
@@ -102,17 +117,27 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let mut model = Mms::new(&model_config, &device);
     if let Some(init) = &opts.init {
         if opts.resume {
-            return Err(Error::invalid("--init", "cannot be combined with --resume (the checkpoint already holds the weights)"));
+            return Err(Error::invalid(
+                "--init",
+                "cannot be combined with --resume (the checkpoint already holds the weights)",
+            ));
         }
         let bytes = crate::io::read_bytes(init)?;
         let stored = weights::read_config(&bytes, init)?;
         if stored != model_config {
             return Err(Error::invalid(
                 "--init",
-                format!("{} holds a {} network, but the run trains {}", init.display(), stored.name, model_config.name),
+                format!(
+                    "{} holds a {} network, but the run trains {}",
+                    init.display(),
+                    stored.name,
+                    model_config.name
+                ),
             ));
         }
-        let mut store = burn::store::SafetensorsStore::from_bytes(Some(bytes)).validate(true).allow_partial(false);
+        let mut store = burn::store::SafetensorsStore::from_bytes(Some(bytes))
+            .validate(true)
+            .allow_partial(false);
         burn::store::ModuleSnapshot::load_from(&mut model, &mut store)
             .map_err(|e| Error::format(init, format!("cannot load the weights: {e}")))?;
     }
@@ -123,24 +148,43 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let mut best_val = None;
     let mut seconds = 0.0;
     if let Some((state, model_bytes, optim_bytes)) = existing {
-        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes)).map_err(|e| record_error("checkpoint model", e))?;
-        model = model.try_load_record(record).map_err(|e| record_error("checkpoint model", e))?;
-        optim = optim.from_bytes(Bytes::from_bytes_vec(optim_bytes)).map_err(|e| record_error("checkpoint optimiser", e))?;
+        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
+            .map_err(|e| record_error("checkpoint model", e))?;
+        model = model
+            .try_load_record(record)
+            .map_err(|e| record_error("checkpoint model", e))?;
+        optim = optim
+            .from_bytes(Bytes::from_bytes_vec(optim_bytes))
+            .map_err(|e| record_error("checkpoint optimiser", e))?;
         best_val = state.best_val_epe;
         seconds = state.train_seconds;
     }
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
     let run_json = serde_json::json!({"train": config, "model": model_config, "data": opts.data});
-    crate::io::write_bytes_atomic(&opts.out.join("config.json"), serde_json::to_string_pretty(&run_json).unwrap_or_default().as_bytes())?;
+    crate::io::write_bytes_atomic(
+        &opts.out.join("config.json"),
+        serde_json::to_string_pretty(&run_json)
+            .unwrap_or_default()
+            .as_bytes(),
+    )?;
     let mut log = TrainLog::open(&opts.out.join("log.csv"), start)?;
     let parameters = weights::parameter_count(&model);
 
-    let bar = if opts.progress { ProgressBar::new(config.steps as u64) } else { ProgressBar::hidden() };
-    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    let bar = if opts.progress {
+        ProgressBar::new(config.steps as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
     bar.set_position(start as u64);
     let mut last_loss = f64::NAN;
     let mut step = start;
-    let stop = opts.stop_after.map_or(config.steps, |n| (start + n).min(config.steps));
+    let stop = opts
+        .stop_after
+        .map_or(config.steps, |n| (start + n).min(config.steps));
     while step < stop {
         let t0 = Instant::now();
         let lr = one_cycle(step, config.steps, config.lr, config.pct_start);
@@ -150,7 +194,14 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         for _ in 0..config.batch_size {
             let i = rand::RngExt::random_range(&mut r, 0..train_set.pairs.len());
             let (a, b, f) = train_set.load(i)?;
-            examples.push(make_example(&a, &b, &f, (config.crop[0], config.crop[1]), &config.augment, &mut r)?);
+            examples.push(make_example(
+                &a,
+                &b,
+                &f,
+                (config.crop[0], config.crop[1]),
+                &config.augment,
+                &mut r,
+            )?);
         }
         let batch = Batch::stack(examples, config.crop[0], config.crop[1], &device);
         let preds = model.forward(batch.img1, batch.img2, config.iters, true);
@@ -162,17 +213,29 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
                 "training",
                 format!(
                     "loss became {loss_value} at step {step}; stopped. The last good checkpoint (step {}) is kept in {}",
-                    checkpoint::read(&opts.out).ok().flatten().map(|c| c.0.step).unwrap_or(0),
+                    checkpoint::read(&opts.out)
+                        .ok()
+                        .flatten()
+                        .map(|c| c.0.step)
+                        .unwrap_or(0),
                     checkpoint::dir(&opts.out).display()
                 ),
             ));
         }
-        let epe = preds.last().map(|p| mean_epe(p.clone(), batch.flow, batch.valid)).unwrap_or(f32::NAN);
+        let epe = preds
+            .last()
+            .map(|p| mean_epe(p.clone(), batch.flow, batch.valid))
+            .unwrap_or(f32::NAN);
         let mut grads = GradientsParams::from_grads(loss.backward(), &model);
         let grad_norm = clip_global_norm(&model, &mut grads, config.clip);
         if !grad_norm.is_finite() {
             bar.abandon();
-            return Err(Error::invalid("training", format!("gradient norm became {grad_norm} at step {step}; stopped, last checkpoint kept")));
+            return Err(Error::invalid(
+                "training",
+                format!(
+                    "gradient norm became {grad_norm} at step {step}; stopped, last checkpoint kept"
+                ),
+            ));
         }
         model = optim.step(lr, model, grads);
         step += 1;
@@ -180,23 +243,54 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         seconds += ms / 1e3;
 
-        let mut row = LogRow { step, lr, loss: last_loss, epe: epe as f64, grad_norm, ms_per_step: ms, val_epe: None, val_px1: None };
+        let mut row = LogRow {
+            step,
+            lr,
+            loss: last_loss,
+            epe: epe as f64,
+            grad_norm,
+            ms_per_step: ms,
+            val_epe: None,
+            val_px1: None,
+        };
         if step % config.val_every == 0 || step == config.steps {
             let valid_model = model.valid();
-            let scores = evaluate_dataset(&valid_model, &model_config, &val_set, config.val_iters, config.val_max_pairs, &opts.device)?;
+            let scores = evaluate_dataset(
+                &valid_model,
+                &model_config,
+                &val_set,
+                config.val_iters,
+                config.val_max_pairs,
+                &opts.device,
+            )?;
             row.val_epe = Some(scores.epe);
             row.val_px1 = Some(scores.px1);
             if best_val.is_none_or(|b| scores.epe < b) {
                 best_val = Some(scores.epe);
-                weights::save(&opts.out.join("best.safetensors"), &valid_model, &model_config)?;
+                weights::save(
+                    &opts.out.join("best.safetensors"),
+                    &valid_model,
+                    &model_config,
+                )?;
             }
         }
         log.append(&row)?;
-        bar.set_message(format!("loss {:.3} epe {:.2}{}", last_loss, epe, best_val.map(|v| format!(" val {v:.2}")).unwrap_or_default()));
+        bar.set_message(format!(
+            "loss {:.3} epe {:.2}{}",
+            last_loss,
+            epe,
+            best_val.map(|v| format!(" val {v:.2}")).unwrap_or_default()
+        ));
         bar.set_position(step as u64);
         if step % config.checkpoint_every == 0 || step == config.steps || step == stop {
-            let model_bytes = model.clone().into_record().into_bytes().map_err(|e| record_error("checkpoint model", e))?;
-            let optim_bytes = optim.into_bytes().map_err(|e| record_error("checkpoint optimiser", e))?;
+            let model_bytes = model
+                .clone()
+                .into_record()
+                .into_bytes()
+                .map_err(|e| record_error("checkpoint model", e))?;
+            let optim_bytes = optim
+                .into_bytes()
+                .map_err(|e| record_error("checkpoint optimiser", e))?;
             let state = CheckpointState {
                 step,
                 model_file: format!("model-{step:07}.bpk"),
@@ -207,12 +301,22 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
                 train_seconds: seconds,
             };
             checkpoint::write(&opts.out, &state, &model_bytes, &optim_bytes)?;
-            weights::save(&opts.out.join("last.safetensors"), &model.valid(), &model_config)?;
+            weights::save(
+                &opts.out.join("last.safetensors"),
+                &model.valid(),
+                &model_config,
+            )?;
             log.plot(&opts.out.join("curves.png"))?;
         }
     }
     bar.finish_and_clear();
-    Ok(TrainSummary { steps: step, last_loss, best_val_epe: best_val, train_seconds: seconds, parameters })
+    Ok(TrainSummary {
+        steps: step,
+        last_loss,
+        best_val_epe: best_val,
+        train_seconds: seconds,
+        parameters,
+    })
 }
 
 /// The run folder's exported weights: `best.safetensors` if validation ran, else `last`.
@@ -223,5 +327,11 @@ pub fn run_weights(run: &Path) -> Result<PathBuf> {
             return Ok(p);
         }
     }
-    Err(Error::invalid("--run", format!("{} holds no trained weights (best.safetensors or last.safetensors)", run.display())))
+    Err(Error::invalid(
+        "--run",
+        format!(
+            "{} holds no trained weights (best.safetensors or last.safetensors)",
+            run.display()
+        ),
+    ))
 }
