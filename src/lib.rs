@@ -20,6 +20,7 @@ pub mod report;
 pub mod rng;
 pub mod scene;
 pub mod types;
+pub mod wide;
 
 pub use error::{Error, Result};
 pub use types::{Flow, Image};
