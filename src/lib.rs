@@ -17,6 +17,7 @@ pub mod imaging;
 pub mod io;
 pub mod optics;
 pub mod report;
+pub mod report_timing;
 pub mod rng;
 pub mod scene;
 pub mod types;

@@ -15,7 +15,13 @@ fn render_calibrate_stitch_round_trip() {
     let calib = calibrate(&layout, &raw_grid, 11, None).unwrap();
     for (i, l) in calib.lenses.iter().enumerate() {
         assert_eq!(l.dots, 121, "lens {i}");
-        assert!(l.rms_px < 0.15 && l.max_px < 0.5, "lens {i}: rms {} max {} (order {})", l.rms_px, l.max_px, l.fx.order);
+        assert!(
+            l.rms_px < 0.15 && l.max_px < 0.5,
+            "lens {i}: rms {} max {} (order {})",
+            l.rms_px,
+            l.max_px,
+            l.fx.order
+        );
     }
     let scene = pins::scene::texture::procedural(5, 3, 480, 1440, 160.0);
     let raw = render_raw(&layout, &scene).unwrap();
@@ -33,8 +39,13 @@ fn bad_frames_are_rejected() {
     assert!(calibrate(&layout, &wrong, 11, None).is_err());
     // A frame without dots: the message says how many were found and expected.
     let blank = pins::Image::filled(1, 1200, 1600, 0.7);
-    let err = calibrate(&layout, &blank, 11, None).unwrap_err().to_string();
-    assert!(err.contains("found 0 dots") && err.contains("121 expected"), "{err}");
+    let err = calibrate(&layout, &blank, 11, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("found 0 dots") && err.contains("121 expected"),
+        "{err}"
+    );
     // Too few dots for the polynomial order.
     let (grid, _) = dot_grid_target(&layout, 3).unwrap();
     let raw = render_raw(&layout, &grid).unwrap();

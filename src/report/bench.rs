@@ -2,14 +2,13 @@
 //! sizes on one and two threads, and direct against FFT convolution over PSF sizes, each with
 //! its error against a float64 reference.
 
-use std::time::Instant;
-
 use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::imaging::convolve::{FftConvolver, convolve_direct, convolve_reference};
 use crate::imaging::{Camera, CameraConfig, psf_source};
 use crate::optics::Psf;
+pub use crate::report_timing::median_ms;
 use crate::scene::texture::procedural;
 use crate::types::Image;
 
@@ -72,20 +71,6 @@ impl Default for BenchOptions {
             max_direct: 65,
         }
     }
-}
-
-/// Median wall time of `f` over `reps` runs after one warm-up, in ms.
-pub fn median_ms<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    std::hint::black_box(f());
-    let mut t: Vec<f64> = (0..reps.max(1))
-        .map(|_| {
-            let s = Instant::now();
-            std::hint::black_box(f());
-            s.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    t.sort_by(|a, b| a.total_cmp(b));
-    t[t.len() / 2]
 }
 
 /// Crops the centred `k × k` window of a PSF channel (k odd, at most the PSF's size), or pads it.

@@ -80,7 +80,8 @@ fn box_mean(g: &[f32], h: usize, w: usize, r: usize) -> Vec<f32> {
         let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
         for x in 0..w {
             let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let s = ii[y1 * (w + 1) + x1] - ii[y0 * (w + 1) + x1] - ii[y1 * (w + 1) + x0] + ii[y0 * (w + 1) + x0];
+            let s = ii[y1 * (w + 1) + x1] - ii[y0 * (w + 1) + x1] - ii[y1 * (w + 1) + x0]
+                + ii[y0 * (w + 1) + x0];
             out[y * w + x] = (s / ((y1 - y0) * (x1 - x0)) as f64) as f32;
         }
     }
@@ -93,16 +94,25 @@ fn box_mean(g: &[f32], h: usize, w: usize, r: usize) -> Vec<f32> {
 pub fn detect_dots(layout: &ArrayLayout, raw: &Image) -> Result<Vec<Dot>> {
     let [h, w] = layout.sensor;
     if (raw.height(), raw.width()) != (h, w) {
-        return Err(Error::shape("raw frame", format!("{w}x{h} (the layout's sensor)"), format!("{}x{}", raw.width(), raw.height())));
+        return Err(Error::shape(
+            "raw frame",
+            format!("{w}x{h} (the layout's sensor)"),
+            format!("{}x{}", raw.width(), raw.height()),
+        ));
     }
     let g = grey(raw);
     let owner: Vec<i16> = (0..h * w)
-        .map(|i| sensor_to_tile(layout, (i % w) as f64, (i / w) as f64).map_or(-1, |(l, _, _)| l as i16))
+        .map(|i| {
+            sensor_to_tile(layout, (i % w) as f64, (i / w) as f64).map_or(-1, |(l, _, _)| l as i16)
+        })
         .collect();
     let local = box_mean(&g, h, w, 15);
     let mut dots = Vec::new();
     for lens in 0..layout.lenses.len() {
-        let mut vals: Vec<f32> = (0..h * w).filter(|&i| owner[i] == lens as i16).map(|i| g[i]).collect();
+        let mut vals: Vec<f32> = (0..h * w)
+            .filter(|&i| owner[i] == lens as i16)
+            .map(|i| g[i])
+            .collect();
         if vals.is_empty() {
             continue;
         }
@@ -115,7 +125,9 @@ pub fn detect_dots(layout: &ArrayLayout, raw: &Image) -> Result<Vec<Dot>> {
         // sub-image's contrast. A global threshold fails where the PSF blurs the sub-image's
         // border into the dark surround.
         let margin = 0.2 * (bg - dark);
-        let is_dot = |i: usize| owner[i] == lens as i16 && g[i] < local[i] - margin && local[i] > dark + margin;
+        let is_dot = |i: usize| {
+            owner[i] == lens as i16 && g[i] < local[i] - margin && local[i] > dark + margin
+        };
         let mut seen = vec![false; h * w];
         for start in 0..h * w {
             if seen[start] || !is_dot(start) {
@@ -146,7 +158,12 @@ pub fn detect_dots(layout: &ArrayLayout, raw: &Image) -> Result<Vec<Dot>> {
                 }
             }
             if area >= 3 && sw > 0.0 {
-                dots.push(Dot { lens, x: sx / sw, y: sy / sw, area });
+                dots.push(Dot {
+                    lens,
+                    x: sx / sw,
+                    y: sy / sw,
+                    area,
+                });
             }
         }
     }
@@ -160,10 +177,21 @@ fn held_out_rms(obj: &[(f64, f64)], xs: &[f64], ys: &[f64], order: usize) -> Opt
         let train: Vec<usize> = (0..obj.len()).filter(|i| i % folds != k).collect();
         let test: Vec<usize> = (0..obj.len()).filter(|i| i % folds == k).collect();
         let pts: Vec<(f64, f64)> = train.iter().map(|&i| obj[i]).collect();
-        let fx = Poly2::fit(&pts, &train.iter().map(|&i| xs[i]).collect::<Vec<_>>(), order).ok()?;
-        let fy = Poly2::fit(&pts, &train.iter().map(|&i| ys[i]).collect::<Vec<_>>(), order).ok()?;
+        let fx = Poly2::fit(
+            &pts,
+            &train.iter().map(|&i| xs[i]).collect::<Vec<_>>(),
+            order,
+        )
+        .ok()?;
+        let fy = Poly2::fit(
+            &pts,
+            &train.iter().map(|&i| ys[i]).collect::<Vec<_>>(),
+            order,
+        )
+        .ok()?;
         for &i in &test {
-            se += (fx.eval(obj[i].0, obj[i].1) - xs[i]).powi(2) + (fy.eval(obj[i].0, obj[i].1) - ys[i]).powi(2);
+            se += (fx.eval(obj[i].0, obj[i].1) - xs[i]).powi(2)
+                + (fy.eval(obj[i].0, obj[i].1) - ys[i]).powi(2);
             n += 1;
         }
     }
@@ -172,7 +200,12 @@ fn held_out_rms(obj: &[(f64, f64)], xs: &[f64], ys: &[f64], order: usize) -> Opt
 
 /// Calibrates from a raw dot-grid frame with `per_side`² dots per tile. `order` fixes the
 /// polynomial order; `None` picks the order (2…6) with the smallest held-out error.
-pub fn calibrate(layout: &ArrayLayout, raw: &Image, per_side: usize, order: Option<usize>) -> Result<Calibration> {
+pub fn calibrate(
+    layout: &ArrayLayout,
+    raw: &Image,
+    per_side: usize,
+    order: Option<usize>,
+) -> Result<Calibration> {
     layout.validate()?;
     let (_, centres) = super::render::dot_grid_target(layout, per_side)?;
     let dots = detect_dots(layout, raw)?;
@@ -180,7 +213,11 @@ pub fn calibrate(layout: &ArrayLayout, raw: &Image, per_side: usize, order: Opti
     for (i, tile) in centres.iter().enumerate() {
         let expected: Vec<(f64, f64)> = tile
             .iter()
-            .map(|&(x, y)| nominal_sensor_position(layout, x, y).map(|(_, sx, sy)| (sx, sy)).unwrap_or((f64::NAN, f64::NAN)))
+            .map(|&(x, y)| {
+                nominal_sensor_position(layout, x, y)
+                    .map(|(_, sx, sy)| (sx, sy))
+                    .unwrap_or((f64::NAN, f64::NAN))
+            })
             .collect();
         // Gate: a third of the closest spacing between expected dots.
         let mut spacing = f64::INFINITY;
@@ -212,23 +249,58 @@ pub fn calibrate(layout: &ArrayLayout, raw: &Image, per_side: usize, order: Opti
         if obj.len() * 10 < tile.len() * 9 {
             return Err(Error::invalid(
                 "grid image",
-                format!("lens {}: found {} dots and matched {} of the {} expected; is this a grid frame of this layout?", i + 1, found.len(), obj.len(), tile.len()),
+                format!(
+                    "lens {}: found {} dots and matched {} of the {} expected; is this a grid frame of this layout?",
+                    i + 1,
+                    found.len(),
+                    obj.len(),
+                    tile.len()
+                ),
             ));
         }
         let held_out: Vec<(usize, f64)> = match order {
             Some(o) => vec![(o, held_out_rms(&obj, &xs, &ys, o).unwrap_or(f64::NAN))],
-            None => (2..=6).filter(|&o| terms(o) * 5 / 4 < obj.len()).filter_map(|o| held_out_rms(&obj, &xs, &ys, o).map(|r| (o, r))).collect(),
+            None => (2..=6)
+                .filter(|&o| terms(o) * 5 / 4 < obj.len())
+                .filter_map(|o| held_out_rms(&obj, &xs, &ys, o).map(|r| (o, r)))
+                .collect(),
         };
         let chosen = match order {
             Some(o) => o,
-            None => held_out.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map(|p| p.0).ok_or_else(|| Error::invalid("calibration", format!("lens {}: too few dots for any polynomial order", i + 1)))?,
+            None => held_out
+                .iter()
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|p| p.0)
+                .ok_or_else(|| {
+                    Error::invalid(
+                        "calibration",
+                        format!("lens {}: too few dots for any polynomial order", i + 1),
+                    )
+                })?,
         };
         let fx = Poly2::fit(&obj, &xs, chosen)?;
         let fy = Poly2::fit(&obj, &ys, chosen)?;
-        let errs: Vec<f64> = obj.iter().zip(xs.iter().zip(&ys)).map(|(p, (x, y))| ((fx.eval(p.0, p.1) - x).powi(2) + (fy.eval(p.0, p.1) - y).powi(2)).sqrt()).collect();
+        let errs: Vec<f64> = obj
+            .iter()
+            .zip(xs.iter().zip(&ys))
+            .map(|(p, (x, y))| {
+                ((fx.eval(p.0, p.1) - x).powi(2) + (fy.eval(p.0, p.1) - y).powi(2)).sqrt()
+            })
+            .collect();
         let rms_px = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt();
         let max_px = errs.iter().cloned().fold(0.0, f64::max);
-        lenses.push(LensCalibration { fx, fy, dots: obj.len(), rms_px, max_px, held_out });
+        lenses.push(LensCalibration {
+            fx,
+            fy,
+            dots: obj.len(),
+            rms_px,
+            max_px,
+            held_out,
+        });
     }
-    Ok(Calibration { layout: layout.clone(), dots_per_side: per_side, lenses })
+    Ok(Calibration {
+        layout: layout.clone(),
+        dots_per_side: per_side,
+        lenses,
+    })
 }

@@ -45,9 +45,18 @@ impl Default for ArrayLayout {
             tile_fov_deg: 45.0,
             tile_px: 480,
             lenses: vec![
-                LensView { tilt_deg: -45.0, axis_px: [172.0, 340.0] },
-                LensView { tilt_deg: 0.0, axis_px: [800.0, 860.0] },
-                LensView { tilt_deg: 45.0, axis_px: [1428.0, 340.0] },
+                LensView {
+                    tilt_deg: -45.0,
+                    axis_px: [172.0, 340.0],
+                },
+                LensView {
+                    tilt_deg: 0.0,
+                    axis_px: [800.0, 860.0],
+                },
+                LensView {
+                    tilt_deg: 45.0,
+                    axis_px: [1428.0, 340.0],
+                },
             ],
         }
     }
@@ -66,23 +75,51 @@ impl ArrayLayout {
 
     /// Checks the values and that the lenses are ordered left to right.
     pub fn validate(&self) -> Result<()> {
-        if self.sensor.iter().any(|&s| s == 0 || s > 20000) || self.tile_px == 0 || self.tile_px > 8192 {
-            return Err(Error::invalid("array layout", "sensor and tile sizes must be positive and sensible"));
+        if self.sensor.iter().any(|&s| s == 0 || s > 20000)
+            || self.tile_px == 0
+            || self.tile_px > 8192
+        {
+            return Err(Error::invalid(
+                "array layout",
+                "sensor and tile sizes must be positive and sensible",
+            ));
         }
-        for (n, v) in [("pixel_um", self.pixel_um), ("focal_mm", self.focal_mm), ("tile_fov_deg", self.tile_fov_deg)] {
+        for (n, v) in [
+            ("pixel_um", self.pixel_um),
+            ("focal_mm", self.focal_mm),
+            ("tile_fov_deg", self.tile_fov_deg),
+        ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(format!("array.{n}"), format!("must be finite and > 0, got {v}")));
+                return Err(Error::invalid(
+                    format!("array.{n}"),
+                    format!("must be finite and > 0, got {v}"),
+                ));
             }
         }
         if self.tile_fov_deg >= 120.0 || self.lenses.is_empty() {
-            return Err(Error::invalid("array", "need at least one lens and a tile field below 120°"));
+            return Err(Error::invalid(
+                "array",
+                "need at least one lens and a tile field below 120°",
+            ));
         }
-        if self.lenses.windows(2).any(|w| w[0].tilt_deg >= w[1].tilt_deg) {
-            return Err(Error::invalid("array.lenses", "tilts must increase from left to right"));
+        if self
+            .lenses
+            .windows(2)
+            .any(|w| w[0].tilt_deg >= w[1].tilt_deg)
+        {
+            return Err(Error::invalid(
+                "array.lenses",
+                "tilts must increase from left to right",
+            ));
         }
         for l in &self.lenses {
-            if !(l.tilt_deg.abs() + self.tile_fov_deg / 2.0 < 90.0) || l.axis_px.iter().any(|v| !v.is_finite()) {
-                return Err(Error::invalid("array.lenses", format!("lens at {}°: its sector must stay within ±90°", l.tilt_deg)));
+            if !(l.tilt_deg.abs() + self.tile_fov_deg / 2.0 < 90.0)
+                || l.axis_px.iter().any(|v| !v.is_finite())
+            {
+                return Err(Error::invalid(
+                    "array.lenses",
+                    format!("lens at {}°: its sector must stay within ±90°", l.tilt_deg),
+                ));
             }
         }
         Ok(())

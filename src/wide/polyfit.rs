@@ -36,23 +36,49 @@ impl Poly2 {
     pub fn fit(points: &[(f64, f64)], values: &[f64], order: usize) -> Result<Self> {
         let m = terms(order);
         if points.len() != values.len() {
-            return Err(Error::shape("polynomial fit values", points.len(), values.len()));
+            return Err(Error::shape(
+                "polynomial fit values",
+                points.len(),
+                values.len(),
+            ));
         }
         if points.len() < m {
-            return Err(Error::invalid("polynomial fit", format!("order {order} needs at least {m} points, got {}", points.len())));
+            return Err(Error::invalid(
+                "polynomial fit",
+                format!(
+                    "order {order} needs at least {m} points, got {}",
+                    points.len()
+                ),
+            ));
         }
         let n = points.len() as f64;
-        let centre = [points.iter().map(|p| p.0).sum::<f64>() / n, points.iter().map(|p| p.1).sum::<f64>() / n];
+        let centre = [
+            points.iter().map(|p| p.0).sum::<f64>() / n,
+            points.iter().map(|p| p.1).sum::<f64>() / n,
+        ];
         let scale = [
-            points.iter().map(|p| (p.0 - centre[0]).abs()).fold(0.0, f64::max).max(1e-12),
-            points.iter().map(|p| (p.1 - centre[1]).abs()).fold(0.0, f64::max).max(1e-12),
+            points
+                .iter()
+                .map(|p| (p.0 - centre[0]).abs())
+                .fold(0.0, f64::max)
+                .max(1e-12),
+            points
+                .iter()
+                .map(|p| (p.1 - centre[1]).abs())
+                .fold(0.0, f64::max)
+                .max(1e-12),
         ];
         let rows = points.len();
         // Design matrix, column-major for the Householder sweeps.
         let mut a = vec![0.0; rows * m];
         let mut row = Vec::with_capacity(m);
         for (r, p) in points.iter().enumerate() {
-            monomials(order, (p.0 - centre[0]) / scale[0], (p.1 - centre[1]) / scale[1], &mut row);
+            monomials(
+                order,
+                (p.0 - centre[0]) / scale[0],
+                (p.1 - centre[1]) / scale[1],
+                &mut row,
+            );
             for (c, v) in row.iter().enumerate() {
                 a[c * rows + r] = *v;
             }
@@ -62,7 +88,12 @@ impl Poly2 {
             let col = &a[k * rows..(k + 1) * rows];
             let norm = col[k..].iter().map(|v| v * v).sum::<f64>().sqrt();
             if norm < 1e-12 * (rows as f64).sqrt() {
-                return Err(Error::invalid("polynomial fit", format!("the points do not determine an order-{order} polynomial (rank deficient)")));
+                return Err(Error::invalid(
+                    "polynomial fit",
+                    format!(
+                        "the points do not determine an order-{order} polynomial (rank deficient)"
+                    ),
+                ));
             }
             let alpha = if col[k] > 0.0 { -norm } else { norm };
             let mut v: Vec<f64> = col[k..].to_vec();
@@ -98,12 +129,20 @@ impl Poly2 {
             }
             coefficients[k] = s / d;
         }
-        Ok(Self { order, centre, scale, coefficients })
+        Ok(Self {
+            order,
+            centre,
+            scale,
+            coefficients,
+        })
     }
 
     /// Evaluates at `(x, y)`.
     pub fn eval(&self, x: f64, y: f64) -> f64 {
-        let (u, v) = ((x - self.centre[0]) / self.scale[0], (y - self.centre[1]) / self.scale[1]);
+        let (u, v) = (
+            (x - self.centre[0]) / self.scale[0],
+            (y - self.centre[1]) / self.scale[1],
+        );
         let mut s = 0.0;
         let mut k = 0;
         for d in 0..=self.order {
@@ -122,13 +161,28 @@ mod tests {
 
     #[test]
     fn recovers_a_polynomial_and_rejects_degenerate_fits() {
-        let f = |x: f64, y: f64| 3.0 + 0.5 * x - 2.0 * y + 1e-3 * x * y + 2e-4 * x * x - 1e-6 * y * y * y;
-        let pts: Vec<(f64, f64)> = (0..100).map(|i| (1000.0 + (i % 10) as f64 * 37.0, 500.0 + (i / 10) as f64 * 29.0)).collect();
+        let f = |x: f64, y: f64| {
+            3.0 + 0.5 * x - 2.0 * y + 1e-3 * x * y + 2e-4 * x * x - 1e-6 * y * y * y
+        };
+        let pts: Vec<(f64, f64)> = (0..100)
+            .map(|i| {
+                (
+                    1000.0 + (i % 10) as f64 * 37.0,
+                    500.0 + (i / 10) as f64 * 29.0,
+                )
+            })
+            .collect();
         let vals: Vec<f64> = pts.iter().map(|p| f(p.0, p.1)).collect();
         let p = Poly2::fit(&pts, &vals, 3).unwrap();
         assert!((p.eval(1111.0, 600.0) - f(1111.0, 600.0)).abs() < 1e-8);
-        assert!(Poly2::fit(&pts[..5], &vals[..5], 3).is_err(), "fewer points than coefficients");
+        assert!(
+            Poly2::fit(&pts[..5], &vals[..5], 3).is_err(),
+            "fewer points than coefficients"
+        );
         let line: Vec<(f64, f64)> = (0..20).map(|i| (i as f64, 2.0 * i as f64)).collect();
-        assert!(Poly2::fit(&line, &vec![1.0; 20], 2).is_err(), "collinear points");
+        assert!(
+            Poly2::fit(&line, &vec![1.0; 20], 2).is_err(),
+            "collinear points"
+        );
     }
 }

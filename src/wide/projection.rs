@@ -73,12 +73,19 @@ mod tests {
                     let (x, y) = project(profile, f, t, ax, ay).unwrap();
                     let (bx, by) = unproject(profile, f, t, x, y).unwrap();
                     let (h2, v2) = angles(bx, by).unwrap();
-                    assert!((h2 - h).abs() < 1e-9 && (v2 - v).abs() < 1e-9, "{profile:?} {tilt}");
+                    assert!(
+                        (h2 - h).abs() < 1e-9 && (v2 - v).abs() < 1e-9,
+                        "{profile:?} {tilt}"
+                    );
                 }
             }
         }
         // The centre lens is symmetric; a side lens compresses its outer half (Note S3).
-        let c = |h: f64, t: f64| project(Profile::Hyperbolic, f, t, direction(h, 0.0).0, 0.0).unwrap().0;
+        let c = |h: f64, t: f64| {
+            project(Profile::Hyperbolic, f, t, direction(h, 0.0).0, 0.0)
+                .unwrap()
+                .0
+        };
         let q = 22.5f64.to_radians();
         assert!((c(q, 0.0) + c(-q, 0.0)).abs() < 1e-9);
         let t = 45f64.to_radians();

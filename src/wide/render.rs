@@ -29,7 +29,11 @@ pub fn tile_angles(layout: &ArrayLayout, x: f64, y: f64) -> (usize, f64, f64) {
     let i = ((x / n).floor().max(0.0) as usize).min(layout.lenses.len() - 1);
     let fov = layout.tile_fov_deg.to_radians();
     let t = layout.lenses[i].tilt_deg.to_radians();
-    ((i), t + ((x + 0.5 - i as f64 * n) / n - 0.5) * fov, ((y + 0.5) / n - 0.5) * fov)
+    (
+        (i),
+        t + ((x + 0.5 - i as f64 * n) / n - 0.5) * fov,
+        ((y + 0.5) / n - 0.5) * fov,
+    )
 }
 
 /// Sensor position (pixels) of stitched pixel `(x, y)` through the nominal lens model.
@@ -37,7 +41,13 @@ pub fn nominal_sensor_position(layout: &ArrayLayout, x: f64, y: f64) -> Option<(
     let (i, h, v) = tile_angles(layout, x, y);
     let (ax, ay) = direction(h, v);
     let l = &layout.lenses[i];
-    let (dx, dy) = project(layout.profile, layout.focal_px(), l.tilt_deg.to_radians(), ax, ay)?;
+    let (dx, dy) = project(
+        layout.profile,
+        layout.focal_px(),
+        l.tilt_deg.to_radians(),
+        ax,
+        ay,
+    )?;
     Some((i, l.axis_px[0] + dx, l.axis_px[1] + dy))
 }
 
@@ -46,8 +56,18 @@ pub fn sensor_to_tile(layout: &ArrayLayout, x: f64, y: f64) -> Option<(usize, f6
     let f = layout.focal_px();
     let mut found = None;
     for (i, l) in layout.lenses.iter().enumerate() {
-        let Some((ax, ay)) = unproject(layout.profile, f, l.tilt_deg.to_radians(), x - l.axis_px[0], y - l.axis_px[1]) else { continue };
-        let Some((h, v)) = angles(ax, ay) else { continue };
+        let Some((ax, ay)) = unproject(
+            layout.profile,
+            f,
+            l.tilt_deg.to_radians(),
+            x - l.axis_px[0],
+            y - l.axis_px[1],
+        ) else {
+            continue;
+        };
+        let Some((h, v)) = angles(ax, ay) else {
+            continue;
+        };
         if let Some((tx, ty)) = tile_position(layout, i, h, v) {
             found = Some((i, tx, ty));
             break;
@@ -68,10 +88,19 @@ pub fn check_layout(layout: &ArrayLayout) -> Result<()> {
             let s = k as f64 / 64.0 * (n - 1.0);
             for (x, y) in [(s, 0.0), (s, n - 1.0), (0.0, s), (n - 1.0, s)] {
                 let Some((_, sx, sy)) = nominal_sensor_position(layout, i as f64 * n + x, y) else {
-                    return Err(Error::invalid("array layout", format!("lens {} cannot image its whole tile", i + 1)));
+                    return Err(Error::invalid(
+                        "array layout",
+                        format!("lens {} cannot image its whole tile", i + 1),
+                    ));
                 };
                 if sx < 0.0 || sy < 0.0 || sx > w as f64 - 1.0 || sy > h as f64 - 1.0 {
-                    return Err(Error::invalid("array layout", format!("lens {}'s sub-image leaves the {w}x{h} sensor near ({sx:.0}, {sy:.0})", i + 1)));
+                    return Err(Error::invalid(
+                        "array layout",
+                        format!(
+                            "lens {}'s sub-image leaves the {w}x{h} sensor near ({sx:.0}, {sy:.0})",
+                            i + 1
+                        ),
+                    ));
                 }
             }
         }
@@ -84,17 +113,26 @@ pub fn check_layout(layout: &ArrayLayout) -> Result<()> {
                 .iter()
                 .enumerate()
                 .filter(|(i, l)| {
-                    unproject(layout.profile, f, l.tilt_deg.to_radians(), x as f64 - l.axis_px[0], y as f64 - l.axis_px[1])
-                        .and_then(|(ax, ay)| angles(ax, ay))
-                        .and_then(|(hh, vv)| tile_position(layout, *i, hh, vv))
-                        .is_some()
+                    unproject(
+                        layout.profile,
+                        f,
+                        l.tilt_deg.to_radians(),
+                        x as f64 - l.axis_px[0],
+                        y as f64 - l.axis_px[1],
+                    )
+                    .and_then(|(ax, ay)| angles(ax, ay))
+                    .and_then(|(hh, vv)| tile_position(layout, *i, hh, vv))
+                    .is_some()
                 })
                 .count();
             (claims > 1).then_some((x, y))
         })
     });
     if let Some((x, y)) = clash {
-        return Err(Error::invalid("array layout", format!("two sub-images overlap at sensor pixel ({x}, {y})")));
+        return Err(Error::invalid(
+            "array layout",
+            format!("two sub-images overlap at sensor pixel ({x}, {y})"),
+        ));
     }
     Ok(())
 }
@@ -104,7 +142,11 @@ pub fn check_layout(layout: &ArrayLayout) -> Result<()> {
 pub fn render_raw(layout: &ArrayLayout, wide: &Image) -> Result<Image> {
     let [th, tw] = layout.wide_size();
     if (wide.height(), wide.width()) != (th, tw) {
-        return Err(Error::shape("wide scene", format!("{tw}x{th}"), format!("{}x{}", wide.width(), wide.height())));
+        return Err(Error::shape(
+            "wide scene",
+            format!("{tw}x{th}"),
+            format!("{}x{}", wide.width(), wide.height()),
+        ));
     }
     let [h, w] = layout.sensor;
     let c = wide.channels();
@@ -129,7 +171,8 @@ pub fn render_raw(layout: &ArrayLayout, wide: &Image) -> Result<Image> {
     let mut data = vec![0.0f32; c * h * w];
     for (y, row) in rows.iter().enumerate() {
         for ch in 0..c {
-            data[ch * h * w + y * w..ch * h * w + (y + 1) * w].copy_from_slice(&row[ch * w..(ch + 1) * w]);
+            data[ch * h * w + y * w..ch * h * w + (y + 1) * w]
+                .copy_from_slice(&row[ch * w..(ch + 1) * w]);
         }
     }
     Image::from_vec(c, h, w, data)
@@ -138,9 +181,15 @@ pub fn render_raw(layout: &ArrayLayout, wide: &Image) -> Result<Image> {
 /// The calibration target in stitched geometry: `per_side × per_side` dark dots per tile on
 /// white, at the centres of a regular lattice, anti-aliased; returns the image and the dot
 /// centres `(x, y)` (stitched pixels), tile by tile.
-pub fn dot_grid_target(layout: &ArrayLayout, per_side: usize) -> Result<(Image, Vec<Vec<(f64, f64)>>)> {
+pub fn dot_grid_target(
+    layout: &ArrayLayout,
+    per_side: usize,
+) -> Result<(Image, Vec<Vec<(f64, f64)>>)> {
     if !(3..=40).contains(&per_side) {
-        return Err(Error::invalid("grid", format!("dots per tile side must be 3..=40, got {per_side}")));
+        return Err(Error::invalid(
+            "grid",
+            format!("dots per tile side must be 3..=40, got {per_side}"),
+        ));
     }
     let [th, tw] = layout.wide_size();
     let n = layout.tile_px as f64;
@@ -151,7 +200,10 @@ pub fn dot_grid_target(layout: &ArrayLayout, per_side: usize) -> Result<(Image, 
         let mut tile = Vec::new();
         for r in 0..per_side {
             for c in 0..per_side {
-                tile.push((i as f64 * n + (c as f64 + 0.5) * pitch - 0.5, (r as f64 + 0.5) * pitch - 0.5));
+                tile.push((
+                    i as f64 * n + (c as f64 + 0.5) * pitch - 0.5,
+                    (r as f64 + 0.5) * pitch - 0.5,
+                ));
             }
         }
         centres.push(tile);
@@ -159,13 +211,22 @@ pub fn dot_grid_target(layout: &ArrayLayout, per_side: usize) -> Result<(Image, 
     let mut img = Image::filled(1, th, tw, 1.0);
     for tile in &centres {
         for &(cx, cy) in tile {
-            let (x0, x1) = ((cx - radius - 1.0).floor().max(0.0) as usize, ((cx + radius + 1.0).ceil() as usize).min(tw - 1));
-            let (y0, y1) = ((cy - radius - 1.0).floor().max(0.0) as usize, ((cy + radius + 1.0).ceil() as usize).min(th - 1));
+            let (x0, x1) = (
+                (cx - radius - 1.0).floor().max(0.0) as usize,
+                ((cx + radius + 1.0).ceil() as usize).min(tw - 1),
+            );
+            let (y0, y1) = (
+                (cy - radius - 1.0).floor().max(0.0) as usize,
+                ((cy + radius + 1.0).ceil() as usize).min(th - 1),
+            );
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let mut covered = 0;
                     for s in 0..16 {
-                        let (px, py) = (x as f64 + ((s % 4) as f64 + 0.5) / 4.0 - 0.5, y as f64 + ((s / 4) as f64 + 0.5) / 4.0 - 0.5);
+                        let (px, py) = (
+                            x as f64 + ((s % 4) as f64 + 0.5) / 4.0 - 0.5,
+                            y as f64 + ((s / 4) as f64 + 0.5) / 4.0 - 0.5,
+                        );
                         if (px - cx).powi(2) + (py - cy).powi(2) <= radius * radius {
                             covered += 1;
                         }
@@ -193,7 +254,10 @@ mod tests {
             let (i, sx, sy) = nominal_sensor_position(&layout, x, y).unwrap();
             let (j, bx, by) = sensor_to_tile(&layout, sx, sy).unwrap();
             assert_eq!(i, j);
-            assert!((bx - x).abs() < 1e-6 && (by - y).abs() < 1e-6, "({x}, {y}) → ({bx}, {by})");
+            assert!(
+                (bx - x).abs() < 1e-6 && (by - y).abs() < 1e-6,
+                "({x}, {y}) → ({bx}, {by})"
+            );
         }
         let mut bad = layout.clone();
         bad.lenses[1].axis_px = [400.0, 380.0];

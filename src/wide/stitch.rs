@@ -23,7 +23,14 @@ impl Stitcher {
     pub fn new(calib: &Calibration) -> Result<Self> {
         calib.layout.validate()?;
         if calib.lenses.len() != calib.layout.lenses.len() {
-            return Err(Error::invalid("calibration", format!("{} lens fits for a layout of {} lenses", calib.lenses.len(), calib.layout.lenses.len())));
+            return Err(Error::invalid(
+                "calibration",
+                format!(
+                    "{} lens fits for a layout of {} lenses",
+                    calib.lenses.len(),
+                    calib.layout.lenses.len()
+                ),
+            ));
         }
         let [h, w] = calib.layout.wide_size();
         let n = calib.layout.tile_px;
@@ -35,22 +42,38 @@ impl Stitcher {
                 (l.fx.eval(x, y) as f32, l.fy.eval(x, y) as f32)
             })
             .collect();
-        Ok(Self { height: h, width: w, sensor: calib.layout.sensor, map })
+        Ok(Self {
+            height: h,
+            width: w,
+            sensor: calib.layout.sensor,
+            map,
+        })
     }
 
     /// Rectifies and joins one raw frame into the stitched image.
     pub fn apply(&self, raw: &Image) -> Result<Image> {
         let [sh, sw] = self.sensor;
         if (raw.height(), raw.width()) != (sh, sw) {
-            return Err(Error::shape("raw frame", format!("{sw}x{sh} (the calibrated sensor)"), format!("{}x{}", raw.width(), raw.height())));
+            return Err(Error::shape(
+                "raw frame",
+                format!("{sw}x{sh} (the calibrated sensor)"),
+                format!("{}x{}", raw.width(), raw.height()),
+            ));
         }
         let c = raw.channels();
         let n = self.height * self.width;
         let mut data = vec![0.0f32; c * n];
         for ch in 0..c {
-            data[ch * n..(ch + 1) * n].par_iter_mut().zip(&self.map).for_each(|(o, &(x, y))| {
-                *o = if x >= 0.0 && y >= 0.0 && x <= (sw - 1) as f32 && y <= (sh - 1) as f32 { sample_bilinear(raw, ch, x, y) } else { 0.0 };
-            });
+            data[ch * n..(ch + 1) * n]
+                .par_iter_mut()
+                .zip(&self.map)
+                .for_each(|(o, &(x, y))| {
+                    *o = if x >= 0.0 && y >= 0.0 && x <= (sw - 1) as f32 && y <= (sh - 1) as f32 {
+                        sample_bilinear(raw, ch, x, y)
+                    } else {
+                        0.0
+                    };
+                });
         }
         Image::from_vec(c, self.height, self.width, data)
     }
