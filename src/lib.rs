@@ -20,6 +20,7 @@ pub mod report;
 pub mod report_timing;
 pub mod rng;
 pub mod scene;
+pub mod track;
 pub mod types;
 pub mod wide;
 

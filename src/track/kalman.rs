@@ -1,0 +1,167 @@
+//! Kalman filters for the MTP smoothing of Note S13, in f64 with the Joseph-form covariance
+//! update (P = (I − KH) P (I − KH)ᵀ + K R Kᵀ), which keeps P symmetric positive-definite even
+//! with stiff settings (process noise 1e-9 against measurement noise 1e3, or the reverse).
+
+/// A constant-velocity filter for one coordinate: state (position, velocity), dt = 1 frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConstantVelocity {
+    pub x: [f64; 2],
+    pub p: [[f64; 2]; 2],
+    /// Process noise (acceleration variance) and measurement noise variance.
+    pub q: f64,
+    pub r: f64,
+    initialised: bool,
+}
+
+impl ConstantVelocity {
+    pub fn new(q: f64, r: f64) -> Self {
+        Self {
+            x: [0.0, 0.0],
+            p: [[1e6, 0.0], [0.0, 1e6]],
+            q: q.max(0.0),
+            r: r.max(1e-12),
+            initialised: false,
+        }
+    }
+
+    /// Advances one frame.
+    pub fn predict(&mut self) {
+        let [p, v] = self.x;
+        self.x = [p + v, v];
+        let pm = self.p;
+        // F P Fᵀ with F = [[1, 1], [0, 1]], plus Q for a white-acceleration model.
+        let a = pm[0][0] + pm[0][1] + pm[1][0] + pm[1][1];
+        let b = pm[0][1] + pm[1][1];
+        let c = pm[1][0] + pm[1][1];
+        let d = pm[1][1];
+        let q = self.q;
+        self.p = [[a + q / 4.0, b + q / 2.0], [c + q / 2.0, d + q]];
+        self.symmetrise();
+    }
+
+    /// Fuses a measurement of the position.
+    pub fn update(&mut self, z: f64) {
+        if !z.is_finite() {
+            return;
+        }
+        if !self.initialised {
+            self.x = [z, 0.0];
+            self.p = [[self.r, 0.0], [0.0, 1e3 * self.r.max(1.0)]];
+            self.initialised = true;
+            return;
+        }
+        let s = self.p[0][0] + self.r;
+        let k = [self.p[0][0] / s, self.p[1][0] / s];
+        let y = z - self.x[0];
+        self.x = [self.x[0] + k[0] * y, self.x[1] + k[1] * y];
+        // Joseph form with H = [1, 0]: A = I − K H.
+        let a = [[1.0 - k[0], 0.0], [-k[1], 1.0]];
+        let p = self.p;
+        let ap = [
+            [
+                a[0][0] * p[0][0] + a[0][1] * p[1][0],
+                a[0][0] * p[0][1] + a[0][1] * p[1][1],
+            ],
+            [
+                a[1][0] * p[0][0] + a[1][1] * p[1][0],
+                a[1][0] * p[0][1] + a[1][1] * p[1][1],
+            ],
+        ];
+        let mut np = [[0.0; 2]; 2];
+        for i in 0..2 {
+            for j in 0..2 {
+                np[i][j] = ap[i][0] * a[j][0] + ap[i][1] * a[j][1] + k[i] * self.r * k[j];
+            }
+        }
+        self.p = np;
+        self.symmetrise();
+    }
+
+    fn symmetrise(&mut self) {
+        let off = 0.5 * (self.p[0][1] + self.p[1][0]);
+        self.p[0][1] = off;
+        self.p[1][0] = off;
+    }
+
+    /// True when P is symmetric positive-definite.
+    pub fn covariance_ok(&self) -> bool {
+        let p = self.p;
+        p[0][1] == p[1][0]
+            && p[0][0] > 0.0
+            && p[0][0] * p[1][1] - p[0][1] * p[1][0] > 0.0
+            && p.iter().flatten().all(|v| v.is_finite())
+    }
+}
+
+/// A random-walk filter of a scalar (speed, or the sine or cosine of the direction).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RandomWalk {
+    pub x: f64,
+    pub p: f64,
+    pub q: f64,
+    pub r: f64,
+    initialised: bool,
+}
+
+impl RandomWalk {
+    pub fn new(q: f64, r: f64) -> Self {
+        Self {
+            x: 0.0,
+            p: 1e6,
+            q: q.max(0.0),
+            r: r.max(1e-12),
+            initialised: false,
+        }
+    }
+
+    /// Predicts one frame ahead and fuses `z` (skipped when not finite); returns the estimate.
+    pub fn step(&mut self, z: f64) -> f64 {
+        if !z.is_finite() {
+            self.p += self.q;
+            return self.x;
+        }
+        if !self.initialised {
+            (self.x, self.p, self.initialised) = (z, self.r, true);
+            return self.x;
+        }
+        self.p += self.q;
+        let k = self.p / (self.p + self.r);
+        self.x += k * (z - self.x);
+        // Joseph form in one dimension.
+        self.p = (1.0 - k) * (1.0 - k) * self.p + k * k * self.r;
+        self.x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tracks_constant_velocity_and_stays_positive_definite_when_stiff() {
+        for (q, r) in [(1e-9, 1e3), (1e3, 1e-9), (0.01, 1.0)] {
+            let mut f = ConstantVelocity::new(q, r);
+            for n in 0..200 {
+                f.predict();
+                f.update(3.0 + 2.0 * n as f64 + if n % 2 == 0 { 0.5 } else { -0.5 });
+                assert!(f.covariance_ok(), "q {q} r {r} step {n}: {:?}", f.p);
+            }
+            assert!(f.x.iter().all(|v| v.is_finite()));
+            // Only a sensible ratio is expected to estimate well: with q ≫ r the model itself
+            // says the measurements' jitter is real acceleration.
+            if q < r {
+                assert!(
+                    (f.x[1] - 2.0).abs() < 0.2,
+                    "q {q} r {r}: velocity {}",
+                    f.x[1]
+                );
+            }
+        }
+        let mut s = RandomWalk::new(1e-9, 1e3);
+        for _ in 0..100 {
+            s.step(5.0);
+        }
+        assert!((s.x - 5.0).abs() < 1e-6 && s.p > 0.0);
+        assert!(s.step(f64::NAN).is_finite());
+    }
+}

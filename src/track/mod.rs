@@ -1,0 +1,6 @@
+//! Motion trajectory prediction from flow (Notes S13–S15): regions of interest, Kalman
+//! smoothing, weighted polynomial fits and sub-step extrapolation.
+
+pub mod kalman;
+pub mod predict;
+pub mod roi;

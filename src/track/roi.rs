@@ -1,0 +1,147 @@
+//! The region of interest of Note S13: pixels whose flow magnitude exceeds a threshold, grouped
+//! into 8-connected components; per component its centroid (Eq. S17), mean speed (Eq. S18) and
+//! direction. Eq. S19 averages atan2 values, which fails for motion near ±π (leftward: +179°
+//! and −179° average to 0°); the direction here is the circular mean, the angle of the mean
+//! unit vector, and undefined (None) when the vectors cancel or the object is still.
+
+use crate::error::{Error, Result};
+use crate::types::Flow;
+
+/// One moving region.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Region {
+    pub pixels: usize,
+    /// Eq. S17, pixels.
+    pub centroid: (f64, f64),
+    /// Eq. S18, pixels per frame.
+    pub speed: f64,
+    /// Circular mean of the flow directions, radians in (−π, π]; `None` when undefined.
+    pub direction: Option<f64>,
+    /// `[x_min, y_min, x_max, y_max]`.
+    pub bbox: [usize; 4],
+}
+
+/// All regions with at least `min_area` pixels whose |flow| > `threshold`, largest first.
+/// Non-finite flow is an error (a reader's unknown vectors must be masked before tracking).
+pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Region>> {
+    if !(threshold.is_finite() && threshold >= 0.0) {
+        return Err(Error::invalid(
+            "flow threshold",
+            format!("must be finite and >= 0, got {threshold}"),
+        ));
+    }
+    let (h, w) = (flow.height(), flow.width());
+    let (u, v) = (flow.u(), flow.v());
+    if let Some(i) = u
+        .iter()
+        .zip(v)
+        .position(|(a, b)| !a.is_finite() || !b.is_finite())
+    {
+        return Err(Error::invalid(
+            "flow",
+            format!("non-finite vector at row {}, column {}", i / w, i % w),
+        ));
+    }
+    let moving: Vec<bool> = u
+        .iter()
+        .zip(v)
+        .map(|(a, b)| ((a * a + b * b) as f64).sqrt() > threshold)
+        .collect();
+    let mut label = vec![false; h * w];
+    let mut out = Vec::new();
+    for start in 0..h * w {
+        if !moving[start] || label[start] {
+            continue;
+        }
+        label[start] = true;
+        let mut stack = vec![start];
+        let (mut n, mut sx, mut sy, mut ss, mut cx, mut cy) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut bbox = [w, h, 0, 0];
+        while let Some(p) = stack.pop() {
+            let (x, y) = (p % w, p / w);
+            let (fu, fv) = (u[p] as f64, v[p] as f64);
+            let m = (fu * fu + fv * fv).sqrt();
+            n += 1;
+            sx += x as f64;
+            sy += y as f64;
+            ss += m;
+            if m > 0.0 {
+                cx += fu / m;
+                cy += fv / m;
+            }
+            bbox = [
+                bbox[0].min(x),
+                bbox[1].min(y),
+                bbox[2].max(x),
+                bbox[3].max(y),
+            ];
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                        let q = ny as usize * w + nx as usize;
+                        if moving[q] && !label[q] {
+                            label[q] = true;
+                            stack.push(q);
+                        }
+                    }
+                }
+            }
+        }
+        if n >= min_area.max(1) {
+            let resultant = (cx * cx + cy * cy).sqrt() / n as f64;
+            out.push(Region {
+                pixels: n,
+                centroid: (sx / n as f64, sy / n as f64),
+                speed: ss / n as f64,
+                direction: (resultant > 1e-9).then(|| cy.atan2(cx)),
+                bbox,
+            });
+        }
+    }
+    out.sort_by(|a, b| b.pixels.cmp(&a.pixels));
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn largest_region_centroid_and_leftward_direction() {
+        let mut f = Flow::zeros(20, 30);
+        for y in 5..9 {
+            for x in 10..16 {
+                // Leftward with a little jitter across ±π: atan2 would average to ~0.
+                let v = if (x + y) % 2 == 0 { 0.05 } else { -0.05 };
+                f.set(y, x, -4.0, v);
+            }
+        }
+        f.set(0, 0, 9.0, 0.0); // a one-pixel blip
+        let r = regions(&f, 1.0, 2).unwrap();
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].pixels, 24);
+        assert!((r[0].centroid.0 - 12.5).abs() < 1e-12 && (r[0].centroid.1 - 6.5).abs() < 1e-12);
+        let d = r[0].direction.unwrap();
+        assert!(
+            (d.abs() - std::f64::consts::PI).abs() < 0.02,
+            "direction {d}"
+        );
+        assert!((r[0].speed - 4.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn still_objects_and_bad_flow() {
+        let f = Flow::zeros(8, 8);
+        assert!(regions(&f, 0.5, 1).unwrap().is_empty());
+        // Threshold 0 with a zero vector inside is still: no direction, no NaN.
+        let mut g = Flow::zeros(4, 4);
+        g.set(1, 1, 1.0, 0.0);
+        g.set(1, 2, -1.0, 0.0);
+        let r = regions(&g, 0.0, 1).unwrap();
+        assert!(r[0].direction.is_none());
+        let mut bad = Flow::zeros(4, 4);
+        bad.set(2, 2, f32::NAN, 0.0);
+        assert!(regions(&bad, 0.5, 1).is_err());
+    }
+}
