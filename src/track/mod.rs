@@ -1,6 +1,8 @@
 //! Motion trajectory prediction from flow (Notes S13–S15): regions of interest, Kalman
-//! smoothing, weighted polynomial fits and sub-step extrapolation.
+//! smoothing, weighted polynomial fits and sub-step extrapolation, optimal assignment.
 
+pub mod hungarian;
 pub mod kalman;
+pub mod mtp;
 pub mod predict;
 pub mod roi;

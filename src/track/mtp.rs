@@ -1,0 +1,198 @@
+//! One object's motion trajectory predictor (Note S13, Fig. S11): each frame's region feeds
+//! Kalman filters on position (constant velocity), speed and the sine and cosine of the
+//! direction; the smoothed speed and direction over the last L frames are fitted by weighted
+//! polynomials of order n and extrapolated to the requested horizons.
+
+use std::collections::VecDeque;
+
+use super::kalman::{ConstantVelocity, RandomWalk};
+use super::predict::fit_motion;
+use super::roi::Region;
+use crate::error::{Error, Result};
+
+/// Predictor settings (the paper's defaults: L = 30, n = 2).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MtpConfig {
+    pub window: usize,
+    pub order: usize,
+    /// Kalman process and measurement noise for position (px²) and for speed and direction.
+    pub position_q: f64,
+    pub position_r: f64,
+    pub motion_q: f64,
+    pub motion_r: f64,
+}
+
+impl Default for MtpConfig {
+    fn default() -> Self {
+        Self {
+            window: 30,
+            order: 2,
+            position_q: 0.05,
+            position_r: 1.0,
+            motion_q: 0.01,
+            motion_r: 0.25,
+        }
+    }
+}
+
+impl MtpConfig {
+    pub fn validate(&self) -> Result<()> {
+        if self.window == 0 || self.window > 10_000 || self.order > 6 {
+            return Err(Error::invalid(
+                "mtp",
+                format!(
+                    "window must be 1..=10000 and order 0..=6, got {} and {}",
+                    self.window, self.order
+                ),
+            ));
+        }
+        for (n, v) in [
+            ("position_q", self.position_q),
+            ("position_r", self.position_r),
+            ("motion_q", self.motion_q),
+            ("motion_r", self.motion_r),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(
+                    format!("mtp.{n}"),
+                    format!("must be finite and >= 0, got {v}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The filtered state after one frame and its predictions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    pub frame: usize,
+    pub centroid: (f64, f64),
+    pub speed: f64,
+    pub direction: Option<f64>,
+    /// Predicted centroids at 1…max horizon frames ahead.
+    pub path: Vec<(f64, f64)>,
+}
+
+/// The per-object predictor.
+pub struct Mtp {
+    config: MtpConfig,
+    x: ConstantVelocity,
+    y: ConstantVelocity,
+    speed: RandomWalk,
+    sin: RandomWalk,
+    cos: RandomWalk,
+    history: VecDeque<(f64, f64, Option<f64>)>,
+}
+
+impl Mtp {
+    pub fn new(config: MtpConfig) -> Result<Self> {
+        config.validate()?;
+        Ok(Self {
+            x: ConstantVelocity::new(config.position_q, config.position_r),
+            y: ConstantVelocity::new(config.position_q, config.position_r),
+            speed: RandomWalk::new(config.motion_q, config.motion_r),
+            sin: RandomWalk::new(config.motion_q, config.motion_r),
+            cos: RandomWalk::new(config.motion_q, config.motion_r),
+            history: VecDeque::new(),
+            config,
+        })
+    }
+
+    /// Feeds frame `frame`'s region (or `None` when the object was not seen: the filters coast)
+    /// and predicts `horizon` frames ahead.
+    pub fn step(
+        &mut self,
+        frame: usize,
+        region: Option<&Region>,
+        horizon: usize,
+    ) -> Result<Estimate> {
+        self.x.predict();
+        self.y.predict();
+        let (speed, direction) = match region {
+            Some(r) => {
+                self.x.update(r.centroid.0);
+                self.y.update(r.centroid.1);
+                let s = self.speed.step(r.speed);
+                let d = r.direction.map(|d| {
+                    let (sn, cs) = (self.sin.step(d.sin()), self.cos.step(d.cos()));
+                    sn.atan2(cs)
+                });
+                (s, d)
+            }
+            None => (self.speed.step(f64::NAN), None),
+        };
+        self.history.push_back((frame as f64, speed, direction));
+        while self.history.len() > self.config.window {
+            self.history.pop_front();
+        }
+        let samples: Vec<_> = self.history.iter().copied().collect();
+        let fit = fit_motion(&samples, self.config.order)?;
+        let centroid = (self.x.x[0], self.y.x[0]);
+        let path = fit.extrapolate(centroid, horizon);
+        if path.iter().any(|p| !p.0.is_finite() || !p.1.is_finite()) || !centroid.0.is_finite() {
+            return Err(Error::invalid(
+                "trajectory",
+                format!("prediction became non-finite at frame {frame}"),
+            ));
+        }
+        Ok(Estimate {
+            frame,
+            centroid,
+            speed,
+            direction,
+            path,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn region(x: f64, y: f64, speed: f64, dir: Option<f64>) -> Region {
+        Region {
+            pixels: 50,
+            centroid: (x, y),
+            speed,
+            direction: dir,
+            bbox: [0, 0, 1, 1],
+        }
+    }
+
+    #[test]
+    fn predicts_a_straight_path_and_survives_gaps_and_still_objects() {
+        let mut mtp = Mtp::new(MtpConfig::default()).unwrap();
+        let mut last = None;
+        for n in 0..60 {
+            let seen = if n % 7 == 3 {
+                None
+            } else {
+                Some(region(10.0 + 2.0 * n as f64, 50.0, 2.0, Some(0.0)))
+            };
+            last = Some(mtp.step(n, seen.as_ref(), 15).unwrap());
+        }
+        let e = last.unwrap();
+        let (px, py) = e.path[14];
+        assert!(
+            (px - (e.centroid.0 + 30.0)).abs() < 1.0 && (py - 50.0).abs() < 0.5,
+            "{:?}",
+            e.path[14]
+        );
+        let mut still = Mtp::new(MtpConfig::default()).unwrap();
+        for n in 0..10 {
+            let e = still
+                .step(n, Some(&region(5.0, 5.0, 0.0, None)), 30)
+                .unwrap();
+            assert!(e.path.iter().all(|p| (p.0 - 5.0).abs() < 1e-6));
+        }
+        assert!(
+            Mtp::new(MtpConfig {
+                window: 0,
+                ..MtpConfig::default()
+            })
+            .is_err()
+        );
+    }
+}
