@@ -46,6 +46,33 @@ enum Command {
     /// The wide-angle 3-lens array: raw frames, calibration, stitching (Note S3).
     #[command(subcommand)]
     Array(ArrayCommand),
+    /// Track moving objects through a folder of flow maps and predict their trajectories (Note S13).
+    Track(TrackArgs),
+}
+
+#[derive(clap::Args)]
+struct TrackArgs {
+    /// Folder of .flo files, in frame order by name.
+    #[arg(long)]
+    flows: PathBuf,
+    /// Output folder (tracks.json).
+    #[arg(long)]
+    out: PathBuf,
+    /// Fitting window L in frames.
+    #[arg(long, default_value_t = 30)]
+    window: usize,
+    /// Polynomial order n.
+    #[arg(long, default_value_t = 2)]
+    order: usize,
+    /// Prediction horizons in frames.
+    #[arg(long, value_delimiter = ',', default_value = "1,15,30")]
+    horizons: Vec<usize>,
+    /// Flow magnitude (px/frame) above which a pixel is moving.
+    #[arg(long, default_value_t = 0.5)]
+    threshold: f64,
+    /// Smallest region (pixels) that is an object.
+    #[arg(long, default_value_t = 20)]
+    min_area: usize,
 }
 
 #[derive(Subcommand)]
@@ -433,6 +460,7 @@ fn main() {
         Command::Compare(a) => compare(a),
         Command::Optics(c) => optics(c),
         Command::Array(c) => array(c),
+        Command::Track(a) => track(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -1080,5 +1108,36 @@ fn array(c: ArrayCommand) -> Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+fn track(a: TrackArgs) -> Result<()> {
+    use pins::track::{mtp::MtpConfig, multi::TrackerConfig, run};
+    let tracker = TrackerConfig {
+        mtp: MtpConfig {
+            window: a.window,
+            order: a.order,
+            ..MtpConfig::default()
+        },
+        ..TrackerConfig::default()
+    };
+    let opts = run::TrackOptions {
+        tracker,
+        horizons: a.horizons,
+        threshold: a.threshold,
+        min_area: a.min_area,
+    };
+    let files = run::flow_files(&a.flows)?;
+    let started = std::time::Instant::now();
+    let tracks = run::track_flows(&files, &opts)?;
+    let ms = started.elapsed().as_secs_f64() * 1e3 / files.len() as f64;
+    let out = a.out.join("tracks.json");
+    io::write_bytes_atomic(&out, serde_json::to_string_pretty(&tracks)?.as_bytes())?;
+    println!(
+        "{}: {} objects over {} frames, {ms:.1} ms per frame",
+        out.display(),
+        tracks.objects.len(),
+        files.len()
+    );
     Ok(())
 }

@@ -4,5 +4,7 @@
 pub mod hungarian;
 pub mod kalman;
 pub mod mtp;
+pub mod multi;
 pub mod predict;
 pub mod roi;
+pub mod run;
