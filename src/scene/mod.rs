@@ -7,6 +7,7 @@ pub mod patterns;
 pub mod readers;
 pub mod shape;
 pub mod texture;
+pub mod trajectory;
 
 pub use affine::Affine;
 pub use chairs::ChairsConfig;
