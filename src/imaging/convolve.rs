@@ -63,19 +63,37 @@ pub fn mirror(i: isize, n: usize) -> usize {
 
 /// The plane `[height, width]` padded by `(ry, rx)` on every side with mirrored samples.
 pub fn pad_mirror(plane: &[f32], height: usize, width: usize, ry: usize, rx: usize) -> Vec<f32> {
+    let wp = width + 2 * rx;
+    let mut out = vec![0.0f32; (height + 2 * ry) * wp];
+    pad_mirror_into(plane, height, width, ry, rx, &mut out, wp);
+    out
+}
+
+/// Writes the mirrored padding of `plane` into the first `height + 2·ry` rows of `out`, whose
+/// rows are `stride` long (at least `width + 2·rx`), leaving the rest of `out` untouched.
+pub fn pad_mirror_into(
+    plane: &[f32],
+    height: usize,
+    width: usize,
+    ry: usize,
+    rx: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
     let (hp, wp) = (height + 2 * ry, width + 2 * rx);
     let cols: Vec<usize> = (0..wp)
         .map(|x| mirror(x as isize - rx as isize, width))
         .collect();
-    let mut out = vec![0.0f32; hp * wp];
-    out.par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
-        let src = &plane[mirror(y as isize - ry as isize, height) * width..][..width];
-        row[rx..rx + width].copy_from_slice(src);
-        for x in (0..rx).chain(rx + width..wp) {
-            row[x] = src[cols[x]];
-        }
-    });
-    out
+    out.par_chunks_mut(stride)
+        .take(hp)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let src = &plane[mirror(y as isize - ry as isize, height) * width..][..width];
+            row[rx..rx + width].copy_from_slice(src);
+            for x in (0..rx).chain(rx + width..wp) {
+                row[x] = src[cols[x]];
+            }
+        });
 }
 
 /// Direct convolution of `plane` `[height, width]` with the odd kernel `[kh, kw]`, mirrored
@@ -146,13 +164,9 @@ impl FftConvolver {
     pub fn convolve(&self, plane: &[f32]) -> Vec<f32> {
         let (h, w, kh, kw) = (self.height, self.width, self.kh, self.kw);
         let (m, n) = (self.fft.rows(), self.fft.cols());
-        let (hp, wp) = (h + kh - 1, w + kw - 1);
-        let padded = pad_mirror(plane, h, w, kh / 2, kw / 2);
+        // The mirrored plane goes straight into the zero-filled FFT grid.
         let mut grid = vec![0.0f32; m * n];
-        grid.par_chunks_mut(n)
-            .take(hp)
-            .zip(padded.par_chunks(wp))
-            .for_each(|(g, p)| g[..wp].copy_from_slice(p));
+        pad_mirror_into(plane, h, w, kh / 2, kw / 2, &mut grid, n);
         let mut spec = self.fft.forward(&mut grid);
         spec.par_iter_mut()
             .zip(self.kernel_spectrum.par_iter())
