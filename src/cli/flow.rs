@@ -1,0 +1,276 @@
+//! Commands of the MMS flow network: train, export, infer, eval, bench-flow.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+
+use pins::io::{self, BitDepth};
+
+#[derive(clap::Args)]
+pub(crate) struct BenchFlowArgs {
+    /// mms or mms-small.
+    #[arg(long, default_value = "mms-small")]
+    model: String,
+    /// infer (batch 1) or train (batch 2, one AdamW step).
+    #[arg(long, default_value = "infer")]
+    mode: String,
+    #[arg(long, default_value_t = 368)]
+    height: usize,
+    #[arg(long, default_value_t = 496)]
+    width: usize,
+    #[arg(long, default_value_t = 12)]
+    iters: usize,
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct TrainArgs {
+    /// Training config (JSON); the shipped small-model defaults when absent.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Dataset folder (from `pins generate`, or FlyingChairs/Sintel/Middlebury/KITTI layout).
+    #[arg(long)]
+    data: PathBuf,
+    /// Run folder: checkpoints, log.csv, curves.png, best/last.safetensors.
+    #[arg(long)]
+    out: PathBuf,
+    /// Total steps (overrides the config).
+    #[arg(long)]
+    steps: Option<usize>,
+    /// Continue the run in --out from its last checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+    /// Start from these weights (fine-tuning) instead of a random initialisation.
+    #[arg(long)]
+    init: Option<PathBuf>,
+    /// Stop after this many steps in this session (a checkpoint is written); continue later
+    /// with --resume. The learning-rate schedule still spans the whole run.
+    #[arg(long)]
+    stop_after: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct ExportArgs {
+    /// Training run folder.
+    #[arg(long)]
+    run: PathBuf,
+    /// Output weights file (.safetensors).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct InferArgs {
+    /// Weights file, or "default" for the shipped mms-small weights.
+    #[arg(long, default_value = "default")]
+    weights: String,
+    /// First image (or, with --frames, omit both images).
+    #[arg(long)]
+    img1: Option<PathBuf>,
+    /// Second image.
+    #[arg(long)]
+    img2: Option<PathBuf>,
+    /// A folder of frames: flow between each consecutive pair (sorted by name).
+    #[arg(long)]
+    frames: Option<PathBuf>,
+    /// Output .flo file (or folder with --frames).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write the Middlebury colour-wheel visualisation (PNG; a folder with --frames).
+    #[arg(long)]
+    viz: Option<PathBuf>,
+    /// Refinement iterations (the model's default when absent).
+    #[arg(long)]
+    iters: Option<usize>,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct EvalArgs {
+    /// Weights file, or "default".
+    #[arg(long, default_value = "default")]
+    weights: String,
+    /// Dataset folder with ground-truth flow.
+    #[arg(long)]
+    data: PathBuf,
+    /// Iteration counts to evaluate.
+    #[arg(long, value_delimiter = ',', default_value = "4,8,12,16")]
+    iters: Vec<usize>,
+    /// report.json path (a PNG of EPE against ms per pair is written beside it).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Peer results to draw on the same plot (JSON from scripts/flow_baselines.py).
+    #[arg(long)]
+    peers: Option<PathBuf>,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+}
+
+pub(crate) fn train(a: TrainArgs) -> Result<()> {
+    use pins::flow::train::{TrainConfig, TrainOptions};
+    let config = match &a.config {
+        Some(p) => TrainConfig::from_file(p)?,
+        None => TrainConfig::default(),
+    };
+    let model = config.model_config()?;
+    let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(
+        &model,
+        &burn::prelude::Device::flex(),
+    ));
+    println!(
+        "training {} ({params} parameters) on {}",
+        model.name,
+        a.data.display()
+    );
+    let opts = TrainOptions {
+        data: a.data,
+        out: a.out.clone(),
+        resume: a.resume,
+        steps: a.steps,
+        stop_after: a.stop_after,
+        init: a.init,
+        device: pins::flow::device::select(&a.device)?,
+        progress: !a.quiet && std::io::stderr().is_terminal(),
+    };
+    let s = pins::flow::train::train(config, &opts)?;
+    println!(
+        "{}: {} steps, last loss {:.4}, best validation EPE {}, {:.0} s of training",
+        a.out.display(),
+        s.steps,
+        s.last_loss,
+        s.best_val_epe
+            .map(|v| format!("{v:.3}"))
+            .unwrap_or_else(|| "–".into()),
+        s.train_seconds
+    );
+    Ok(())
+}
+
+pub(crate) fn export(a: ExportArgs) -> Result<()> {
+    let src = pins::flow::train::trainer::run_weights(&a.run)?;
+    let device = burn::prelude::Device::flex();
+    let (model, config) = pins::flow::weights::load(&src, &device)?;
+    pins::flow::weights::save(&a.out, &model, &config)?;
+    println!(
+        "{} → {} ({}, {} parameters)",
+        src.display(),
+        a.out.display(),
+        config.name,
+        pins::flow::weights::parameter_count(&model)
+    );
+    Ok(())
+}
+
+pub(crate) fn infer(a: InferArgs) -> Result<()> {
+    use pins::flow::{infer::Predictor, viz::flow_to_image};
+    let pairs: Vec<(PathBuf, PathBuf, PathBuf, Option<PathBuf>)> =
+        match (&a.frames, &a.img1, &a.img2) {
+            (Some(dir), None, None) => {
+                let mut frames: Vec<PathBuf> = std::fs::read_dir(dir)
+                    .with_context(|| format!("reading {}", dir.display()))?
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| {
+                        p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                            matches!(
+                                e.to_ascii_lowercase().as_str(),
+                                "png" | "jpg" | "jpeg" | "ppm" | "pgm" | "tif" | "tiff" | "exr"
+                            )
+                        })
+                    })
+                    .collect();
+                frames.sort();
+                if frames.len() < 2 {
+                    bail!(
+                        "--frames {}: need at least two images, found {}",
+                        dir.display(),
+                        frames.len()
+                    );
+                }
+                frames
+                    .windows(2)
+                    .map(|w| {
+                        let stem = w[0]
+                            .file_stem()
+                            .map(|s| s.to_string_lossy().into_owned())
+                            .unwrap_or_default();
+                        (
+                            w[0].clone(),
+                            w[1].clone(),
+                            a.out.join(format!("{stem}.flo")),
+                            a.viz.as_ref().map(|v| v.join(format!("{stem}.png"))),
+                        )
+                    })
+                    .collect()
+            }
+            (None, Some(i1), Some(i2)) => {
+                vec![(i1.clone(), i2.clone(), a.out.clone(), a.viz.clone())]
+            }
+            _ => bail!("give either --img1 and --img2, or --frames DIR"),
+        };
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
+    let iters = a.iters.unwrap_or(predictor.config.iters);
+    for (i1, i2, out, viz) in pairs {
+        let (x, y) = io::read_image_pair(&i1, &i2)?;
+        let started = std::time::Instant::now();
+        let flow = predictor.predict(&x, &y, iters)?;
+        let ms = started.elapsed().as_secs_f64() * 1e3;
+        io::write_flow(&out, &flow)?;
+        if let Some(v) = viz {
+            io::write_image(&v, &flow_to_image(&flow, None), BitDepth::Eight)?;
+        }
+        println!(
+            "{} → {}: {}x{}, max |flow| {:.2} px, {iters} iterations, {ms:.0} ms",
+            i1.display(),
+            out.display(),
+            flow.width(),
+            flow.height(),
+            flow.max_magnitude()
+        );
+    }
+    Ok(())
+}
+
+pub(crate) fn eval(a: EvalArgs) -> Result<()> {
+    use pins::flow::{data::FlowDataset, eval::evaluate, infer::Predictor};
+    if a.iters.iter().any(|&n| n == 0 || n > 256) {
+        bail!("--iters values must be 1..=256");
+    }
+    let data = FlowDataset::open(&a.data)?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
+    let report = evaluate(
+        &predictor.model,
+        &predictor.config,
+        &data,
+        &a.iters,
+        &predictor.device,
+    )?;
+    print!("{}", report.markdown());
+    if let Some(out) = &a.out {
+        let text = serde_json::to_string_pretty(&report)?;
+        io::write_bytes_atomic(out, text.as_bytes())?;
+        let png = out.with_extension("png");
+        pins::report::eval_plot::write(&report, a.peers.as_deref(), &png)?;
+        println!("{} and {}", out.display(), png.display());
+    }
+    Ok(())
+}
+
+pub(crate) fn bench_flow(a: BenchFlowArgs) -> Result<()> {
+    if a.reps == 0 || a.iters == 0 {
+        bail!("--reps and --iters must be positive");
+    }
+    let row = pins::report::flow_bench::run(&a.model, &a.mode, a.height, a.width, a.iters, a.reps)?;
+    println!("{}", serde_json::to_string(&row)?);
+    Ok(())
+}

@@ -1,0 +1,7 @@
+//! The subcommands, one file per family; `main.rs` only dispatches.
+
+pub mod array;
+pub mod data;
+pub mod flow;
+pub mod optics;
+pub mod track;
