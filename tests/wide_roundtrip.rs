@@ -28,7 +28,7 @@ fn render_calibrate_stitch_round_trip() {
     let wide = Stitcher::new(&calib).unwrap().apply(&raw).unwrap();
     assert_eq!((wide.height(), wide.width()), (480, 1440));
     let s = compare(&scene, &wide).unwrap();
-    assert!(s.ssim > 0.9 && s.mae < 0.02, "{s:?}");
+    assert!(s.ssim > 0.9 && s.mae < 0.02 && s.mse < 0.002, "{s:?}");
 }
 
 #[test]
