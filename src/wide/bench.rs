@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::calibrate::calibrate;
+use super::calibrate::{calibrate_from_dots, detect_dots};
 use super::layout::ArrayLayout;
 use super::stitch::Stitcher;
 use crate::error::{Error, Result};
@@ -35,9 +35,10 @@ pub fn orders_table(
         .num_threads(1)
         .build()
         .map_err(|e| Error::invalid("threads", e.to_string()))?;
+    let dots = detect_dots(layout, raw_grid)?;
     let mut rows = Vec::new();
     for order in 2..=6 {
-        let calib = calibrate(layout, raw_grid, per_side, Some(order))?;
+        let calib = calibrate_from_dots(layout, &dots, per_side, Some(order))?;
         let stitcher = Stitcher::new(&calib)?;
         let stitch_ms = pool.install(|| median_ms(reps, || stitcher.apply(raw_grid)));
         let worst = |f: &dyn Fn(&super::calibrate::LensCalibration) -> f64| {

@@ -207,8 +207,20 @@ pub fn calibrate(
     order: Option<usize>,
 ) -> Result<Calibration> {
     layout.validate()?;
-    let (_, centres) = super::render::dot_grid_target(layout, per_side)?;
     let dots = detect_dots(layout, raw)?;
+    calibrate_from_dots(layout, &dots, per_side, order)
+}
+
+/// The fit of [`calibrate`] on dots already found by [`detect_dots`], so that several orders
+/// can be tried without finding the dots again.
+pub fn calibrate_from_dots(
+    layout: &ArrayLayout,
+    dots: &[Dot],
+    per_side: usize,
+    order: Option<usize>,
+) -> Result<Calibration> {
+    layout.validate()?;
+    let (_, centres) = super::render::dot_grid_target(layout, per_side)?;
     let mut lenses = Vec::new();
     for (i, tile) in centres.iter().enumerate() {
         let expected: Vec<(f64, f64)> = tile
