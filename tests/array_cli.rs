@@ -1,31 +1,7 @@
 //! `pins array` end to end: render, calibrate, stitch, and the bad inputs of Note S3's pipeline.
 
-use std::process::{Command, Output};
-
-fn pins(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pins"))
-        .args(args)
-        .output()
-        .expect("run pins")
-}
-
-fn ok(o: &Output) -> String {
-    assert!(
-        o.status.success(),
-        "pins failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn err(o: &Output) -> String {
-    assert!(
-        !o.status.success(),
-        "pins should fail: {}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{failed as err, ok, pins};
 
 #[test]
 fn render_calibrate_stitch_and_bad_input() {

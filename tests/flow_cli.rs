@@ -1,38 +1,15 @@
 //! End-to-end tests of `pins train`, `export`, `infer` and `eval`: exact resumption, and bad
 //! input (clear error, non-zero exit, no output file).
 
+mod common;
+use common::{failed, ok, pins};
+
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use pins::dataset::{Generator, GeneratorConfig, SceneSpec, Shard};
 use pins::imaging::CameraConfig;
 use pins::scene::ChairsConfig;
-
-fn pins(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pins"))
-        .args(args)
-        .output()
-        .expect("run pins")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "pins failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn failed(out: &Output) -> String {
-    assert!(
-        !out.status.success(),
-        "pins should fail: {}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// A few small pairs with flow, through the ideal camera (fast).
 fn tiny_dataset(dir: &Path) -> PathBuf {

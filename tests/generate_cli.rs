@@ -1,37 +1,12 @@
 //! End-to-end tests of `pins generate` and `pins simulate`: determinism across thread counts and
 //! shards, resumption, what a scene needs, and bad input (clear error, non-zero exit, no output).
 
+mod common;
+use common::{failed, ok, pins_with_threads as pins};
+
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn pins(args: &[&str], threads: Option<usize>) -> Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_pins"));
-    cmd.args(args);
-    if let Some(t) = threads {
-        cmd.env("RAYON_NUM_THREADS", t.to_string());
-    }
-    cmd.output().expect("run pins")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "pins failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn failed(out: &Output) -> String {
-    assert!(
-        !out.status.success(),
-        "pins should fail: {}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// All files of a folder with their bytes.
 fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {

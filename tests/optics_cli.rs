@@ -1,14 +1,8 @@
 //! `pins optics` and `pins compare` from the command line: Table S1 as JSON, stereo errors,
 //! image similarity.
 
-use std::process::Command;
-
-fn pins(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pins"))
-        .args(args)
-        .output()
-        .expect("run pins")
-}
+mod common;
+use common::pins;
 
 #[test]
 fn dof_json_reproduces_table_s1() {
