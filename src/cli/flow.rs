@@ -3,7 +3,7 @@
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use pins::io::{self, BitDepth};
 
@@ -177,26 +177,7 @@ pub(crate) fn infer(a: InferArgs) -> Result<()> {
     let pairs: Vec<(PathBuf, PathBuf, PathBuf, Option<PathBuf>)> =
         match (&a.frames, &a.img1, &a.img2) {
             (Some(dir), None, None) => {
-                let mut frames: Vec<PathBuf> = std::fs::read_dir(dir)
-                    .with_context(|| format!("reading {}", dir.display()))?
-                    .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| {
-                        p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
-                            matches!(
-                                e.to_ascii_lowercase().as_str(),
-                                "png" | "jpg" | "jpeg" | "ppm" | "pgm" | "tif" | "tiff" | "exr"
-                            )
-                        })
-                    })
-                    .collect();
-                frames.sort();
-                if frames.len() < 2 {
-                    bail!(
-                        "--frames {}: need at least two images, found {}",
-                        dir.display(),
-                        frames.len()
-                    );
-                }
+                let frames = io::frame_files(dir)?;
                 frames
                     .windows(2)
                     .map(|w| {

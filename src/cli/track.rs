@@ -1,19 +1,52 @@
-//! The tracking command: track.
+//! The tracking commands: track (from flows or frames), render, eval, experiment.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 
-use pins::io::{self};
+use pins::io;
+use pins::scene::truth::Truth;
+use pins::track::run::Tracks;
 
 #[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub(crate) struct TrackArgs {
-    /// Folder of .flo files, in frame order by name.
+    #[command(subcommand)]
+    cmd: Option<TrackCmd>,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Subcommand)]
+enum TrackCmd {
+    /// Render a trajectory clip through the camera: frames/, flows/, truth.json.
+    Render(RenderArgs),
+    /// Score a tracks.json against a truth.json: RMSE_X, RMSE_Y, RMSE_2D per horizon and ID.
+    Eval(EvalArgs),
+    /// Run a tracking experiment (clips × predictors, e.g. Table S5 or Note S14).
+    Experiment(ExperimentArgs),
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// Folder of .flo files (flow from frame n to n + 1), in frame order by name.
     #[arg(long)]
-    flows: PathBuf,
-    /// Output folder (tracks.json).
+    flows: Option<PathBuf>,
+    /// Folder of frames, in order by name: flow is estimated by the MMS network.
+    #[arg(long, conflicts_with = "flows")]
+    frames: Option<PathBuf>,
+    /// MMS weights for --frames (`default` = the shipped mms-small).
+    #[arg(long, default_value = "default")]
+    weights: String,
+    /// MMS refinement iterations for --frames (default: the weights' own).
     #[arg(long)]
-    out: PathBuf,
+    iters: Option<usize>,
+    /// Output folder (tracks.json and one plot per object).
+    #[arg(long, required = true)]
+    out: Option<PathBuf>,
+    /// Predictor: the polynomial fit of Note S13 or the constant-velocity baseline.
+    #[arg(long, value_enum, default_value = "poly")]
+    method: Method,
     /// Fitting window L in frames.
     #[arg(long, default_value_t = 30)]
     window: usize,
@@ -29,35 +62,243 @@ pub(crate) struct TrackArgs {
     /// Smallest region (pixels) that is an object.
     #[arg(long, default_value_t = 20)]
     min_area: usize,
+    /// Ground truth (truth.json from `pins track render`) to draw in the plots.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// Skip the plots.
+    #[arg(long)]
+    no_plots: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Method {
+    Poly,
+    ConstantVelocity,
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Clip config (scene and camera), e.g. experiments/track_sinusoid.json.
+    #[arg(long)]
+    config: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct EvalArgs {
+    /// tracks.json from `pins track`.
+    #[arg(long)]
+    tracks: PathBuf,
+    /// truth.json from `pins track render`.
+    #[arg(long)]
+    truth: PathBuf,
+    /// Also write the report as JSON here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct ExperimentArgs {
+    #[arg(long)]
+    config: PathBuf,
+    /// Output folder: report.json, report.txt and plots/.
+    #[arg(long)]
+    out: PathBuf,
+    /// Skip the plots.
+    #[arg(long)]
+    no_plots: bool,
 }
 
 pub(crate) fn track(a: TrackArgs) -> Result<()> {
-    use pins::track::{mtp::MtpConfig, multi::TrackerConfig, run};
+    match a.cmd {
+        Some(TrackCmd::Render(r)) => render(r),
+        Some(TrackCmd::Eval(e)) => eval(e),
+        Some(TrackCmd::Experiment(e)) => experiment(e),
+        None => run(a.run),
+    }
+}
+
+fn run(a: RunArgs) -> Result<()> {
+    use pins::track::{
+        mtp::{self, MtpConfig},
+        multi::TrackerConfig,
+        run as tr,
+    };
+    let Some(out) = a.out else {
+        bail!("--out is required")
+    };
     let tracker = TrackerConfig {
         mtp: MtpConfig {
+            method: match a.method {
+                Method::Poly => mtp::Method::Poly,
+                Method::ConstantVelocity => mtp::Method::ConstantVelocity,
+            },
             window: a.window,
             order: a.order,
             ..MtpConfig::default()
         },
         ..TrackerConfig::default()
     };
-    let opts = run::TrackOptions {
+    tracker.mtp.validate()?;
+    let opts = tr::TrackOptions {
         tracker,
         horizons: a.horizons,
         threshold: a.threshold,
         min_area: a.min_area,
     };
-    let files = run::flow_files(&a.flows)?;
-    let started = std::time::Instant::now();
-    let tracks = run::track_flows(&files, &opts)?;
-    let ms = started.elapsed().as_secs_f64() * 1e3 / files.len() as f64;
-    let out = a.out.join("tracks.json");
-    io::write_bytes_atomic(&out, serde_json::to_string_pretty(&tracks)?.as_bytes())?;
-    println!(
-        "{}: {} objects over {} frames, {ms:.1} ms per frame",
-        out.display(),
+    // Read the truth first so a bad file fails before any work.
+    let truth = a.truth.as_deref().map(Truth::read).transpose()?;
+    let (tracks, frames, flow_ms) = match (&a.flows, &a.frames) {
+        (Some(dir), None) => {
+            let files = tr::flow_files(dir)?;
+            (tr::track_flows(&files, &opts)?, files.len(), None)
+        }
+        (None, Some(dir)) => {
+            let files = io::frame_files(dir)?;
+            let predictor = pins::flow::infer::Predictor::load(&a.weights)?;
+            let iters = a.iters.unwrap_or(predictor.config.iters);
+            let mut flow_time = std::time::Duration::ZERO;
+            let flows = files.windows(2).map(|w| {
+                let (x, y) = io::read_image_pair(&w[0], &w[1])?;
+                let started = std::time::Instant::now();
+                let f = predictor.predict(&x, &y, iters)?;
+                flow_time += started.elapsed();
+                Ok((w[0].display().to_string(), f))
+            });
+            let tracks = tr::track_sequence(flows, &opts)?;
+            let n = files.len() - 1;
+            (tracks, n, Some(flow_time.as_secs_f64() * 1e3 / n as f64))
+        }
+        _ => bail!("give either --flows DIR or --frames DIR"),
+    };
+    let path = out.join("tracks.json");
+    io::write_bytes_atomic(&path, serde_json::to_string_pretty(&tracks)?.as_bytes())?;
+    if !a.no_plots {
+        plots(&out, &tracks, truth.as_ref(), &opts.horizons)?;
+    }
+    let ms = tracks.ms_per_frame.unwrap_or(f64::NAN);
+    print!(
+        "{}: {} objects over {frames} flows, tracking {ms:.2} ms per frame",
+        path.display(),
         tracks.objects.len(),
-        files.len()
     );
+    match flow_ms {
+        Some(f) => println!(", MMS flow {f:.0} ms per frame"),
+        None => println!(),
+    }
+    Ok(())
+}
+
+/// One Fig. S11 plot per object at the longest horizon, `plot_id{ID}.png`. With a truth, each
+/// track is drawn against the true object it follows.
+fn plots(dir: &Path, tracks: &Tracks, truth: Option<&Truth>, horizons: &[usize]) -> Result<()> {
+    use pins::report::track_plot::plot_track;
+    let k = horizons.iter().copied().max().unwrap_or(1);
+    let matched = match truth {
+        Some(t) => pins::track::eval::evaluate(tracks, t)?
+            .objects
+            .iter()
+            .map(|o| o.truth_index)
+            .collect(),
+        None => vec![None; tracks.objects.len()],
+    };
+    let size = match truth {
+        Some(t) => (t.width, t.height),
+        None => extent(tracks),
+    };
+    let fps = truth.map_or(30.0, |t| t.fps);
+    for (t, m) in tracks.objects.iter().zip(matched) {
+        let obj = truth.zip(m).map(|(tr, i)| &tr.objects[i]);
+        plot_track(
+            &dir.join(format!("plot_id{}.png", t.id)),
+            t,
+            k,
+            obj,
+            size,
+            fps,
+        )?;
+    }
+    Ok(())
+}
+
+/// A frame size covering every tracked centre (when no truth gives the real one).
+fn extent(tracks: &Tracks) -> (usize, usize) {
+    let (mut w, mut h) = (1.0f64, 1.0f64);
+    for f in tracks.objects.iter().flat_map(|o| &o.frames) {
+        w = w.max(f.centroid[0] * 1.1);
+        h = h.max(f.centroid[1] * 1.1);
+    }
+    (w.ceil() as usize, h.ceil() as usize)
+}
+
+fn render(a: RenderArgs) -> Result<()> {
+    use pins::dataset::sequence::{SequenceConfig, render_sequence};
+    let cfg = SequenceConfig::from_file(&a.config)?;
+    let started = std::time::Instant::now();
+    let truth = render_sequence(&cfg, &a.out)?;
+    println!(
+        "{}: {} frames of {}x{}, {} objects, {:.1} s",
+        a.out.display(),
+        truth.frames,
+        truth.width,
+        truth.height,
+        truth.objects.len(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn eval(a: EvalArgs) -> Result<()> {
+    use pins::track::eval::{evaluate, table};
+    let tracks = Tracks::read(&a.tracks)?;
+    let truth = Truth::read(&a.truth)?;
+    let report = evaluate(&tracks, &truth)?;
+    println!("{}", table(&report));
+    if let Some(out) = a.out {
+        io::write_bytes_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn experiment(a: ExperimentArgs) -> Result<()> {
+    use pins::report::track_plot::plot_track;
+    use pins::track::eval::evaluate;
+    use pins::track::experiment::{ExperimentConfig, run, table};
+    let cfg = ExperimentConfig::from_file(&a.config)?;
+    let k = cfg.horizons.iter().copied().max().unwrap_or(1);
+    let plots = a.out.join("plots");
+    if !a.no_plots {
+        std::fs::create_dir_all(&plots)?;
+    }
+    let report = run(&cfg, |clip, predictor, tracks, truth| {
+        if a.no_plots {
+            return Ok(());
+        }
+        let slug: String = format!("{clip}_{predictor}")
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+            .collect();
+        let matched = evaluate(tracks, truth)?;
+        for (t, o) in tracks.objects.iter().zip(&matched.objects) {
+            let obj = o.truth_index.map(|i| &truth.objects[i]);
+            plot_track(
+                &plots.join(format!("{slug}_id{}.png", t.id)),
+                t,
+                k,
+                obj,
+                (truth.width, truth.height),
+                truth.fps,
+            )?;
+        }
+        Ok(())
+    })?;
+    let text = table(&report);
+    println!("{text}");
+    io::write_bytes_atomic(
+        &a.out.join("report.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    io::write_bytes_atomic(&a.out.join("report.txt"), text.as_bytes())?;
     Ok(())
 }

@@ -3,6 +3,7 @@
 pub mod config;
 pub mod generate;
 pub mod manifest;
+pub mod sequence;
 
 pub use config::{GeneratorConfig, SceneSpec};
 pub use generate::{Generator, RunSummary, Shard};

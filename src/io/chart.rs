@@ -14,7 +14,8 @@ use crate::types::Image;
 static FONT: &[u8] = include_bytes!("../../datasets/fonts/DejaVuSans.ttf");
 static REGISTER: Once = Once::new();
 
-fn register_font() {
+/// Makes the shipped font the "sans-serif" family of plotters (once per process).
+pub fn register_font() {
     REGISTER.call_once(|| {
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
     });
@@ -48,7 +49,8 @@ const PALETTE: [RGBColor; 6] = [
     RGBColor(140, 86, 75),
 ];
 
-fn plot_err(e: impl std::fmt::Display) -> Error {
+/// A plotters error as this crate's error.
+pub fn plot_err(e: impl std::fmt::Display) -> Error {
     Error::invalid("chart", e.to_string())
 }
 
@@ -160,16 +162,24 @@ impl Chart {
             }
             root.present().map_err(plot_err)?;
         }
-        // Interleaved RGB → planar [3, H, W] in [0, 1].
-        let (w, h) = (width as usize, height as usize);
-        let mut planar = vec![0.0f32; 3 * w * h];
-        for (i, px) in buf.chunks_exact(3).enumerate() {
-            for c in 0..3 {
-                planar[c * w * h + i] = px[c] as f32 / 255.0;
-            }
-        }
-        write_image(path, &Image::from_vec(3, h, w, planar)?, BitDepth::Eight)
+        write_rgb_png(path, &buf, width, height)
     }
+}
+
+/// Writes an interleaved 8-bit RGB buffer (what plotters draws into) as a PNG, atomically.
+pub fn write_rgb_png(path: &Path, buf: &[u8], width: u32, height: u32) -> Result<()> {
+    let (w, h) = (width as usize, height as usize);
+    if buf.len() != 3 * w * h {
+        return Err(Error::shape("RGB buffer", 3 * w * h, buf.len()));
+    }
+    // Interleaved RGB → planar [3, H, W] in [0, 1].
+    let mut planar = vec![0.0f32; 3 * w * h];
+    for (i, px) in buf.chunks_exact(3).enumerate() {
+        for c in 0..3 {
+            planar[c * w * h + i] = px[c] as f32 / 255.0;
+        }
+    }
+    write_image(path, &Image::from_vec(3, h, w, planar)?, BitDepth::Eight)
 }
 
 #[cfg(test)]

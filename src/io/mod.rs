@@ -17,7 +17,7 @@ pub use atomic::{read_bytes, write_atomic, write_bytes_atomic};
 pub use exr::{read_exr, read_flow_exr, write_exr, write_flow_exr};
 pub use flo::{decode_flo, encode_flo, read_flo, write_flo};
 pub use flow_file::{read_flow, write_flow};
-pub use image::{BitDepth, read_image, read_image_pair, write_image};
+pub use image::{BitDepth, frame_files, read_image, read_image_pair, write_image};
 pub use kitti::{read_kitti_flow, write_kitti_flow};
 pub use npy::{read_npy, write_npy};
 pub use pfm::{read_pfm, read_pfm_flow, write_pfm};

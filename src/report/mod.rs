@@ -3,3 +3,4 @@
 pub mod bench;
 pub mod eval_plot;
 pub mod flow_bench;
+pub mod track_plot;

@@ -8,6 +8,7 @@ pub mod readers;
 pub mod shape;
 pub mod texture;
 pub mod trajectory;
+pub mod truth;
 
 pub use affine::Affine;
 pub use chairs::ChairsConfig;

@@ -50,27 +50,39 @@ impl ConstantVelocity {
             self.initialised = true;
             return;
         }
-        let s = self.p[0][0] + self.r;
-        let k = [self.p[0][0] / s, self.p[1][0] / s];
-        let y = z - self.x[0];
+        self.measure(0, z, self.r);
+    }
+
+    /// Fuses a measurement of the velocity (px/frame) with variance `r`, e.g. an object's mean
+    /// optical flow; ignored before the first position or when not finite.
+    pub fn update_velocity(&mut self, v: f64, r: f64) {
+        if !v.is_finite() || !self.initialised {
+            return;
+        }
+        self.measure(1, v, r.max(1e-12));
+    }
+
+    /// Scalar update of state component `i` (H = eᵢᵀ) in Joseph form.
+    fn measure(&mut self, i: usize, z: f64, r: f64) {
+        let s = self.p[i][i] + r;
+        let k = [self.p[0][i] / s, self.p[1][i] / s];
+        let y = z - self.x[i];
         self.x = [self.x[0] + k[0] * y, self.x[1] + k[1] * y];
-        // Joseph form with H = [1, 0]: A = I − K H.
-        let a = [[1.0 - k[0], 0.0], [-k[1], 1.0]];
+        // A = I − K eᵢᵀ; P = A P Aᵀ + K r Kᵀ.
+        let mut a = [[1.0, 0.0], [0.0, 1.0]];
+        a[0][i] -= k[0];
+        a[1][i] -= k[1];
         let p = self.p;
-        let ap = [
-            [
-                a[0][0] * p[0][0] + a[0][1] * p[1][0],
-                a[0][0] * p[0][1] + a[0][1] * p[1][1],
-            ],
-            [
-                a[1][0] * p[0][0] + a[1][1] * p[1][0],
-                a[1][0] * p[0][1] + a[1][1] * p[1][1],
-            ],
-        ];
+        let mut ap = [[0.0; 2]; 2];
+        for (r_, row) in ap.iter_mut().enumerate() {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = a[r_][0] * p[0][c] + a[r_][1] * p[1][c];
+            }
+        }
         let mut np = [[0.0; 2]; 2];
-        for i in 0..2 {
-            for j in 0..2 {
-                np[i][j] = ap[i][0] * a[j][0] + ap[i][1] * a[j][1] + k[i] * self.r * k[j];
+        for (i_, row) in np.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = ap[i_][0] * a[j][0] + ap[i_][1] * a[j][1] + k[i_] * r * k[j];
             }
         }
         self.p = np;
@@ -157,6 +169,19 @@ mod tests {
                 );
             }
         }
+        // A velocity measurement removes the lag of a position-only filter on accelerating motion.
+        let (mut pos, mut both) = (ConstantVelocity::new(0.05, 1.0), ConstantVelocity::new(0.05, 1.0));
+        for n in 0..60 {
+            let t = n as f64;
+            for f in [&mut pos, &mut both] {
+                f.predict();
+                f.update(0.05 * t * t);
+            }
+            both.update_velocity(0.1 * t + 0.05, 0.01);
+            assert!(both.covariance_ok());
+        }
+        let truth = 0.05 * 59.0 * 59.0;
+        assert!((both.x[0] - truth).abs() < 0.5 * (pos.x[0] - truth).abs());
         let mut s = RandomWalk::new(1e-9, 1e3);
         for _ in 0..100 {
             s.step(5.0);

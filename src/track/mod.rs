@@ -8,3 +8,5 @@ pub mod multi;
 pub mod predict;
 pub mod roi;
 pub mod run;
+pub mod eval;
+pub mod experiment;

@@ -10,10 +10,21 @@ use super::predict::fit_motion;
 use super::roi::Region;
 use crate::error::{Error, Result};
 
+/// How the future path is predicted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// The paper's predictor: weighted polynomial fits of speed and direction (Eqs. S20–S23).
+    Poly,
+    /// The baseline: the position Kalman filter's velocity held constant.
+    ConstantVelocity,
+}
+
 /// Predictor settings (the paper's defaults: L = 30, n = 2).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MtpConfig {
+    pub method: Method,
     pub window: usize,
     pub order: usize,
     /// Kalman process and measurement noise for position (px²) and for speed and direction.
@@ -26,11 +37,12 @@ pub struct MtpConfig {
 impl Default for MtpConfig {
     fn default() -> Self {
         Self {
+            method: Method::Poly,
             window: 30,
             order: 2,
-            position_q: 0.05,
+            position_q: 0.5,
             position_r: 1.0,
-            motion_q: 0.01,
+            motion_q: 0.05,
             motion_r: 0.25,
         }
     }
@@ -114,6 +126,11 @@ impl Mtp {
             Some(r) => {
                 self.x.update(r.centroid.0);
                 self.y.update(r.centroid.1);
+                // The region's flow is the object's displacement to the next frame.
+                if let Some(d) = r.direction {
+                    self.x.update_velocity(r.speed * d.cos(), self.config.motion_r);
+                    self.y.update_velocity(r.speed * d.sin(), self.config.motion_r);
+                }
                 let s = self.speed.step(r.speed);
                 let d = r.direction.map(|d| {
                     let (sn, cs) = (self.sin.step(d.sin()), self.cos.step(d.cos()));
@@ -123,14 +140,26 @@ impl Mtp {
             }
             None => (self.speed.step(f64::NAN), None),
         };
-        self.history.push_back((frame as f64, speed, direction));
+        // The flow at frame n is the motion over [n, n + 1]: its time is n + ½.
+        self.history.push_back((frame as f64 + 0.5, speed, direction));
         while self.history.len() > self.config.window {
             self.history.pop_front();
         }
-        let samples: Vec<_> = self.history.iter().copied().collect();
-        let fit = fit_motion(&samples, self.config.order)?;
         let centroid = (self.x.x[0], self.y.x[0]);
-        let path = fit.extrapolate(centroid, horizon);
+        let path = match self.config.method {
+            Method::Poly => {
+                let samples: Vec<_> = self.history.iter().copied().collect();
+                let mut fit = fit_motion(&samples, self.config.order)?;
+                fit.now = frame as f64;
+                fit.extrapolate(centroid, horizon)
+            }
+            Method::ConstantVelocity => {
+                let (vx, vy) = (self.x.x[1], self.y.x[1]);
+                (1..=horizon)
+                    .map(|k| (centroid.0 + vx * k as f64, centroid.1 + vy * k as f64))
+                    .collect()
+            }
+        };
         if path.iter().any(|p| !p.0.is_finite() || !p.1.is_finite()) || !centroid.0.is_finite() {
             return Err(Error::invalid(
                 "trajectory",
@@ -187,6 +216,19 @@ mod tests {
                 .unwrap();
             assert!(e.path.iter().all(|p| (p.0 - 5.0).abs() < 1e-6));
         }
+        let mut cv = Mtp::new(MtpConfig {
+            method: Method::ConstantVelocity,
+            ..MtpConfig::default()
+        })
+        .unwrap();
+        let mut e = None;
+        for n in 0..40 {
+            let r = region(10.0 + 2.0 * n as f64, 50.0 - n as f64, 5f64.sqrt(), None);
+            e = Some(cv.step(n, Some(&r), 10).unwrap());
+        }
+        let e = e.unwrap();
+        let (dx, dy) = (e.path[9].0 - e.centroid.0, e.path[9].1 - e.centroid.1);
+        assert!((dx - 20.0).abs() < 0.5 && (dy + 10.0).abs() < 0.5, "{dx} {dy}");
         assert!(
             Mtp::new(MtpConfig {
                 window: 0,

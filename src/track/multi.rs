@@ -16,7 +16,9 @@ use crate::error::{Error, Result};
 #[serde(deny_unknown_fields, default)]
 pub struct TrackerConfig {
     pub mtp: MtpConfig,
-    /// Largest distance (px) between a prediction and a detection that may be matched.
+    /// Largest distance (px) between a prediction and a detection that may be matched; it
+    /// widens by half for every frame a track has coasted, so a track re-acquires its object
+    /// after an occlusion or a merge.
     pub gate_px: f64,
     /// Hits before a new track is reported.
     pub confirm: usize,
@@ -30,7 +32,7 @@ impl Default for TrackerConfig {
             mtp: MtpConfig::default(),
             gate_px: 40.0,
             confirm: 2,
-            patience: 5,
+            patience: 15,
         }
     }
 }
@@ -85,11 +87,11 @@ impl Tracker {
         detections: &[Region],
         horizon: usize,
     ) -> Result<Vec<TrackEstimate>> {
-        let gate = self.config.gate_px;
         let cost: Vec<Vec<f64>> = self
             .tracks
             .iter()
             .map(|t| {
+                let gate = self.config.gate_px * (1.0 + 0.5 * t.misses as f64);
                 detections
                     .iter()
                     .map(|d| {

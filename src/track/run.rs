@@ -4,15 +4,16 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::multi::{Tracker, TrackerConfig};
 use super::roi::regions;
 use crate::error::{Error, Result};
 use crate::io;
+use crate::types::Flow;
 
 /// One object in one frame, as written to `tracks.json`.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct FrameRecord {
     pub frame: usize,
     pub centroid: [f64; 2],
@@ -22,19 +23,33 @@ pub struct FrameRecord {
     pub observed: bool,
     /// Horizon (frames, as a string key) → predicted centroid.
     pub predicted: BTreeMap<String, [f64; 2]>,
+    /// The whole predicted path, frames n + 1 … n + K (kept in memory for plots, not written).
+    #[serde(skip)]
+    pub path: Vec<[f64; 2]>,
 }
 
 /// One object's track.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ObjectTrack {
     pub id: usize,
     pub frames: Vec<FrameRecord>,
 }
 
 /// `tracks.json`.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Tracks {
     pub objects: Vec<ObjectTrack>,
+    /// Wall time of detection, filtering and prediction per frame (flow estimation excluded).
+    #[serde(default)]
+    pub ms_per_frame: Option<f64>,
+}
+
+impl Tracks {
+    /// Reads a `tracks.json`.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        serde_json::from_str(&text).map_err(|e| Error::format(path, e.to_string()))
+    }
 }
 
 /// Options of a run.
@@ -66,6 +81,19 @@ pub fn flow_files(dir: &Path) -> Result<Vec<PathBuf>> {
 
 /// Tracks a folder of flows.
 pub fn track_flows(files: &[PathBuf], opts: &TrackOptions) -> Result<Tracks> {
+    track_sequence(
+        files
+            .iter()
+            .map(|f| Ok((f.display().to_string(), io::read_flow(f)?))),
+        opts,
+    )
+}
+
+/// Tracks a sequence of named flows (frame n → n + 1, in order).
+pub fn track_sequence(
+    flows: impl Iterator<Item = Result<(String, Flow)>>,
+    opts: &TrackOptions,
+) -> Result<Tracks> {
     if opts.horizons.is_empty() || opts.horizons.iter().any(|&h| h == 0 || h > 10_000) {
         return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
     }
@@ -73,21 +101,24 @@ pub fn track_flows(files: &[PathBuf], opts: &TrackOptions) -> Result<Tracks> {
     let mut tracker = Tracker::new(opts.tracker.clone())?;
     let mut objects: BTreeMap<usize, Vec<FrameRecord>> = BTreeMap::new();
     let mut size: Option<(usize, usize)> = None;
-    for (frame, f) in files.iter().enumerate() {
-        let flow = io::read_flow(f)?;
+    let mut busy = std::time::Duration::ZERO;
+    let mut count = 0usize;
+    for (frame, item) in flows.enumerate() {
+        let (name, flow) = item?;
+        let started = std::time::Instant::now();
         let s = (flow.height(), flow.width());
         if let Some(first) = size
             && first != s
         {
             return Err(Error::shape(
-                format!("flow {}", f.display()),
+                format!("flow {name}"),
                 format!("{}x{} (the first flow)", first.1, first.0),
                 format!("{}x{}", s.1, s.0),
             ));
         }
         size = Some(s);
         let dets = regions(&flow, opts.threshold, opts.min_area)
-            .map_err(|e| Error::invalid(format!("flow {}", f.display()), e.to_string()))?;
+            .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
         for t in tracker.step(frame, &dets, max_h)? {
             let e = &t.estimate;
             let predicted = opts
@@ -102,10 +133,14 @@ pub fn track_flows(files: &[PathBuf], opts: &TrackOptions) -> Result<Tracks> {
                 direction: e.direction,
                 observed: t.observed,
                 predicted,
+                path: e.path.iter().map(|p| [p.0, p.1]).collect(),
             });
         }
+        busy += started.elapsed();
+        count += 1;
     }
     Ok(Tracks {
+        ms_per_frame: Some(busy.as_secs_f64() * 1e3 / count.max(1) as f64),
         objects: objects
             .into_iter()
             .map(|(id, frames)| ObjectTrack { id, frames })

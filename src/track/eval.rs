@@ -1,0 +1,367 @@
+//! Trajectory prediction error against ground truth (Note S15, Table S5): each track is
+//! matched to one true object (Hungarian on the frames it covers, as IDF1 does), then for every horizon h
+//! RMSE_X, RMSE_Y and RMSE_2D of the prediction made at frame n against the true centre at
+//! frame n + h, over the frames where the object is wholly in view. ID switches count, for
+//! each true object, how often the track covering it changes.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::hungarian::assign;
+use super::run::Tracks;
+use crate::error::{Error, Result};
+use crate::scene::truth::Truth;
+
+/// Errors at one horizon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HorizonError {
+    pub horizon: usize,
+    /// Predictions scored.
+    pub count: usize,
+    pub rmse_x: f64,
+    pub rmse_y: f64,
+    pub rmse_2d: f64,
+}
+
+/// One track's errors.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectReport {
+    pub id: usize,
+    /// The true object it follows, or null for a spurious track.
+    pub truth_index: Option<usize>,
+    pub frames: usize,
+    /// Mean distance between the tracked and the true centre (px).
+    pub centre_error: f64,
+    pub horizons: Vec<HorizonError>,
+}
+
+/// `pins track eval`'s report.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrackReport {
+    pub objects: Vec<ObjectReport>,
+    /// All matched tracks pooled.
+    pub overall: Vec<HorizonError>,
+    /// True objects seen in some frame but followed by no track.
+    pub missed: Vec<usize>,
+    pub id_switches: usize,
+    pub ms_per_frame: Option<f64>,
+}
+
+#[derive(Default, Clone, Copy)]
+struct Acc {
+    n: usize,
+    sx: f64,
+    sy: f64,
+}
+
+impl Acc {
+    fn add(&mut self, dx: f64, dy: f64) {
+        self.n += 1;
+        self.sx += dx * dx;
+        self.sy += dy * dy;
+    }
+
+    fn error(&self, horizon: usize) -> HorizonError {
+        let n = self.n.max(1) as f64;
+        let nan_if_empty = |v: f64| if self.n == 0 { f64::NAN } else { v };
+        HorizonError {
+            horizon,
+            count: self.n,
+            rmse_x: nan_if_empty((self.sx / n).sqrt()),
+            rmse_y: nan_if_empty((self.sy / n).sqrt()),
+            rmse_2d: nan_if_empty(((self.sx + self.sy) / n).sqrt()),
+        }
+    }
+}
+
+/// The horizons present in `tracks`, ascending.
+fn horizons(tracks: &Tracks) -> Result<Vec<usize>> {
+    let mut hs = std::collections::BTreeSet::new();
+    for o in &tracks.objects {
+        for f in &o.frames {
+            for k in f.predicted.keys() {
+                let h: usize = k.parse().map_err(|_| {
+                    Error::invalid("tracks", format!("horizon key {k:?} is not a frame count"))
+                })?;
+                hs.insert(h);
+            }
+        }
+    }
+    Ok(hs.into_iter().collect())
+}
+
+/// Scores `tracks` against `truth`.
+pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
+    truth.validate()?;
+    let hs = horizons(tracks)?;
+    let centre = |i: usize, n: usize| -> Option<[f64; 2]> {
+        let o = &truth.objects[i];
+        (n < truth.frames && o.visible[n]).then(|| o.centroids[n])
+    };
+    let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    // Tracks are matched to objects globally, as IDF1 does: each track to the object it
+    // covers in the most frames (its observed centre within the object's radius).
+    let cost: Vec<Vec<f64>> = tracks
+        .objects
+        .iter()
+        .map(|t| {
+            (0..truth.objects.len())
+                .map(|i| {
+                    let reach = truth.objects[i].radius.max(5.0);
+                    let hits = t
+                        .frames
+                        .iter()
+                        .filter(|f| f.observed)
+                        .filter(|f| centre(i, f.frame).is_some_and(|c| dist(f.centroid, c) <= reach))
+                        .count();
+                    if hits > 0 { -(hits as f64) } else { f64::INFINITY }
+                })
+                .collect()
+        })
+        .collect();
+    let matched = assign(&cost);
+    let mut overall: BTreeMap<usize, Acc> = hs.iter().map(|&h| (h, Acc::default())).collect();
+    let mut objects = Vec::new();
+    for (t, m) in tracks.objects.iter().zip(&matched) {
+        let mut acc: BTreeMap<usize, Acc> = hs.iter().map(|&h| (h, Acc::default())).collect();
+        let mut centre_sum = (0.0, 0usize);
+        if let Some(i) = *m {
+            for f in &t.frames {
+                if let (true, Some(c)) = (f.observed, centre(i, f.frame)) {
+                    centre_sum.0 += dist(f.centroid, c);
+                    centre_sum.1 += 1;
+                }
+                for (k, p) in &f.predicted {
+                    let h: usize = k.parse().unwrap_or(0);
+                    if let Some(c) = centre(i, f.frame + h) {
+                        let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                        if let Some(a) = acc.get_mut(&h) {
+                            a.add(dx, dy);
+                        }
+                        if let Some(a) = overall.get_mut(&h) {
+                            a.add(dx, dy);
+                        }
+                    }
+                }
+            }
+        }
+        objects.push(ObjectReport {
+            id: t.id,
+            truth_index: *m,
+            frames: t.frames.len(),
+            centre_error: if centre_sum.1 > 0 {
+                centre_sum.0 / centre_sum.1 as f64
+            } else {
+                f64::NAN
+            },
+            horizons: acc.iter().map(|(&h, a)| a.error(h)).collect(),
+        });
+    }
+    let followed: Vec<usize> = matched.iter().flatten().copied().collect();
+    let missed = (0..truth.objects.len())
+        .filter(|i| !followed.contains(i) && truth.objects[*i].visible.iter().any(|&v| v))
+        .collect();
+    Ok(TrackReport {
+        objects,
+        overall: overall.iter().map(|(&h, a)| a.error(h)).collect(),
+        missed,
+        id_switches: id_switches(tracks, truth),
+        ms_per_frame: tracks.ms_per_frame,
+    })
+}
+
+/// ID switches as CLEAR MOT counts them: in every frame, true objects and observed tracks are
+/// matched one to one (centre within the object's radius), keeping last frame's pairs that
+/// still hold; an object matched to a different track than at its last match is a switch.
+fn id_switches(tracks: &Tracks, truth: &Truth) -> usize {
+    let mut by_frame: BTreeMap<usize, Vec<(usize, [f64; 2])>> = BTreeMap::new();
+    for t in &tracks.objects {
+        for f in t.frames.iter().filter(|f| f.observed) {
+            by_frame.entry(f.frame).or_default().push((t.id, f.centroid));
+        }
+    }
+    let objects = &truth.objects;
+    let mut last: Vec<Option<usize>> = vec![None; objects.len()];
+    let mut switches = 0;
+    for n in 0..truth.frames {
+        let Some(dets) = by_frame.get(&n) else {
+            continue;
+        };
+        let d = |i: usize, j: usize| {
+            let (c, p) = (objects[i].centroids[n], dets[j].1);
+            let dist = (p[0] - c[0]).hypot(p[1] - c[1]);
+            if objects[i].visible[n] && dist <= objects[i].radius.max(5.0) {
+                dist
+            } else {
+                f64::INFINITY
+            }
+        };
+        let mut now: Vec<Option<usize>> = vec![None; objects.len()];
+        let mut taken = vec![false; dets.len()];
+        // Pairs from the last match that still hold are kept.
+        for i in 0..objects.len() {
+            if let Some(j) = last[i].and_then(|id| dets.iter().position(|x| x.0 == id))
+                && d(i, j).is_finite()
+                && !taken[j]
+            {
+                now[i] = Some(j);
+                taken[j] = true;
+            }
+        }
+        let free: Vec<usize> = (0..objects.len()).filter(|&i| now[i].is_none()).collect();
+        let cost: Vec<Vec<f64>> = free
+            .iter()
+            .map(|&i| {
+                (0..dets.len())
+                    .map(|j| if taken[j] { f64::INFINITY } else { d(i, j) })
+                    .collect()
+            })
+            .collect();
+        for (&i, m) in free.iter().zip(assign(&cost)) {
+            if let Some(j) = m.filter(|&j| d(i, j).is_finite() && !taken[j]) {
+                now[i] = Some(j);
+            }
+        }
+        for i in 0..objects.len() {
+            if let Some(j) = now[i] {
+                let id = dets[j].0;
+                if last[i].is_some_and(|l| l != id) {
+                    switches += 1;
+                }
+                last[i] = Some(id);
+            }
+        }
+    }
+    switches
+}
+
+/// The report as a text table (Table S5 layout, with a count column).
+pub fn table(report: &TrackReport) -> String {
+    let mut s = format!(
+        "{:<10} {:>7} {:>6} {:>10} {:>10} {:>10}\n",
+        "track", "horizon", "count", "RMSE_X", "RMSE_Y", "RMSE_2D"
+    );
+    let mut row = |name: &str, e: &HorizonError| {
+        s += &format!(
+            "{:<10} {:>7} {:>6} {:>10.2} {:>10.2} {:>10.2}\n",
+            name, e.horizon, e.count, e.rmse_x, e.rmse_y, e.rmse_2d
+        );
+    };
+    for o in &report.objects {
+        let name = match o.truth_index {
+            Some(i) => format!("ID {} ({i})", o.id),
+            None => format!("ID {} (-)", o.id),
+        };
+        for e in &o.horizons {
+            row(&name, e);
+        }
+    }
+    for e in &report.overall {
+        row("all", e);
+    }
+    s += &format!(
+        "ID switches {}, missed objects {:?}",
+        report.id_switches, report.missed
+    );
+    if let Some(ms) = report.ms_per_frame {
+        s += &format!(", {ms:.2} ms per frame");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::truth::TruthObject;
+    use crate::track::run::{FrameRecord, ObjectTrack};
+
+    fn truth() -> Truth {
+        let line = |y: f64| TruthObject {
+            index: 0,
+            radius: 5.0,
+            centroids: (0..20).map(|n| [10.0 + 2.0 * n as f64, y]).collect(),
+            visible: vec![true; 20],
+        };
+        Truth {
+            width: 100,
+            height: 100,
+            fps: 30.0,
+            frames: 20,
+            objects: vec![line(20.0), TruthObject { index: 1, ..line(60.0) }],
+        }
+    }
+
+    fn track(id: usize, y: f64, bias: f64) -> ObjectTrack {
+        ObjectTrack {
+            id,
+            frames: (0..20)
+                .map(|n| {
+                    let x = 10.0 + 2.0 * n as f64;
+                    FrameRecord {
+                        frame: n,
+                        centroid: [x, y],
+                        speed: 2.0,
+                        direction: Some(0.0),
+                        observed: true,
+                        predicted: [("1".to_string(), [x + 2.0 + bias, y - bias])]
+                            .into_iter()
+                            .collect(),
+                        path: Vec::new(),
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn rmse_matches_the_definition_and_tracks_match_objects() {
+        let tracks = Tracks {
+            objects: vec![track(7, 60.0, 3.0), track(9, 20.0, 0.0)],
+            ms_per_frame: Some(1.0),
+        };
+        let r = evaluate(&tracks, &truth()).unwrap();
+        assert_eq!(r.objects[0].truth_index, Some(1));
+        assert_eq!(r.objects[1].truth_index, Some(0));
+        let e = &r.objects[0].horizons[0];
+        // 19 predictions (the last one targets frame 20, past the clip), each off by (3, −3).
+        assert_eq!(e.count, 19);
+        assert!((e.rmse_x - 3.0).abs() < 1e-12 && (e.rmse_y - 3.0).abs() < 1e-12);
+        assert!((e.rmse_2d - 18f64.sqrt()).abs() < 1e-12);
+        assert_eq!(r.objects[1].horizons[0].rmse_2d, 0.0);
+        assert!((r.overall[0].rmse_2d - 9f64.sqrt()).abs() < 1e-12);
+        assert_eq!((r.id_switches, r.missed.len()), (0, 0));
+    }
+
+    #[test]
+    fn a_swapped_id_counts_as_a_switch_and_a_far_track_as_spurious() {
+        let mut a = track(1, 20.0, 0.0);
+        let mut b = track(2, 60.0, 0.0);
+        // Halfway through, the two tracks exchange objects.
+        for n in 10..20 {
+            std::mem::swap(&mut a.frames[n].centroid, &mut b.frames[n].centroid);
+        }
+        let short = ObjectTrack {
+            id: 4,
+            frames: track(4, 20.0, 0.0).frames[..2].to_vec(),
+        };
+        let far = ObjectTrack {
+            id: 3,
+            frames: track(3, 95.0, 0.0).frames,
+        };
+        let r = evaluate(
+            &Tracks {
+                objects: vec![a, b, far, short],
+                ms_per_frame: None,
+            },
+            &truth(),
+        )
+        .unwrap();
+        // A and B each cover both objects for 10 frames; the short track covers object 0 for 2.
+        assert_eq!(r.id_switches, 3);
+        assert!(r.objects[0].truth_index.is_some() && r.objects[1].truth_index.is_some());
+        assert_eq!(r.objects[3].truth_index, None);
+        assert_eq!(r.objects[2].truth_index, None);
+        assert!(r.objects[2].horizons[0].rmse_2d.is_nan());
+    }
+}

@@ -1,0 +1,305 @@
+//! Tracking experiments (Table S5, Note S14): several clips × several predictors, each clip
+//! tracked from its exact flow or from MMS flow on its camera frames, every track scored at
+//! every horizon, with the run time per frame: one table a reader can compare across.
+
+use std::path::Path;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::eval::{HorizonError, evaluate};
+use super::mtp::MtpConfig;
+use super::multi::TrackerConfig;
+use super::run::{TrackOptions, Tracks, track_sequence};
+use crate::dataset::sequence::SequenceConfig;
+use crate::error::{Error, Result};
+use crate::flow::infer::Predictor;
+use crate::rng;
+use crate::scene::truth::Truth;
+use crate::types::Flow;
+
+/// Where the flow maps come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FlowSource {
+    /// The scene's exact flow: isolates the predictor's error.
+    Truth,
+    /// MMS on the camera frames: the whole system, as in the paper.
+    Mms,
+}
+
+/// One named clip: a clip config file (relative to the experiment file).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipSpec {
+    pub name: String,
+    pub config: std::path::PathBuf,
+    /// The loaded clip (filled in by `ExperimentConfig::from_file`).
+    #[serde(skip)]
+    pub clip: SequenceConfig,
+}
+
+/// One named predictor setting.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PredictorSpec {
+    pub name: String,
+    #[serde(default)]
+    pub mtp: MtpConfig,
+}
+
+/// An experiment file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentConfig {
+    pub clips: Vec<ClipSpec>,
+    pub predictors: Vec<PredictorSpec>,
+    pub horizons: Vec<usize>,
+    #[serde(default = "default_source")]
+    pub flow: FlowSource,
+    /// MMS weights for `"flow": "mms"` (`default` = the shipped ones) and iterations.
+    #[serde(default = "default_weights")]
+    pub weights: String,
+    #[serde(default = "default_iters")]
+    pub iters: usize,
+    /// Detection: flow magnitude threshold (px/frame) and smallest region (px).
+    #[serde(default = "default_threshold")]
+    pub threshold: f64,
+    #[serde(default = "default_min_area")]
+    pub min_area: usize,
+}
+
+fn default_source() -> FlowSource {
+    FlowSource::Truth
+}
+fn default_weights() -> String {
+    "default".into()
+}
+fn default_iters() -> usize {
+    12
+}
+fn default_threshold() -> f64 {
+    0.5
+}
+fn default_min_area() -> usize {
+    20
+}
+
+impl ExperimentConfig {
+    pub fn from_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let mut cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        let base = path.parent().unwrap_or(Path::new(""));
+        for c in &mut cfg.clips {
+            if c.config.is_relative() {
+                c.config = base.join(&c.config);
+            }
+            c.clip = SequenceConfig::from_file(&c.config)?;
+        }
+        cfg.validate().map_err(|e| Error::Config {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Ok(cfg)
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if self.clips.is_empty() || self.predictors.is_empty() {
+            return Err(Error::invalid(
+                "experiment",
+                "needs at least one clip and one predictor",
+            ));
+        }
+        if self.horizons.is_empty() || self.horizons.iter().any(|&h| h == 0 || h > 10_000) {
+            return Err(Error::invalid("horizons", "need horizons in 1..=10000"));
+        }
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            return Err(Error::invalid("threshold", "must be finite and >= 0"));
+        }
+        for c in &self.clips {
+            c.clip.validate()?;
+        }
+        for p in &self.predictors {
+            p.mtp.validate()?;
+        }
+        Ok(())
+    }
+}
+
+/// One row of the result: a clip, a predictor, one tracked object (or `all`), one horizon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Row {
+    pub clip: String,
+    pub predictor: String,
+    /// The true object index, or null for the pooled row.
+    pub object: Option<usize>,
+    pub track_id: Option<usize>,
+    #[serde(flatten)]
+    pub error: HorizonError,
+    pub ms_per_frame: f64,
+}
+
+/// The whole result.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ExperimentReport {
+    pub flow: FlowSource,
+    /// Flow estimation time per frame (MMS only).
+    pub flow_ms_per_frame: Option<f64>,
+    pub rows: Vec<Row>,
+    /// (clip, predictor) → ID switches.
+    pub id_switches: Vec<(String, String, usize)>,
+}
+
+/// A clip's flows and truth, computed once and shared by every predictor.
+pub struct ClipData {
+    pub truth: Truth,
+    pub flows: Vec<Flow>,
+}
+
+/// The flows of a clip: exact, or MMS on its camera frames (`predictor` must then be given).
+pub fn clip_flows(
+    cfg: &SequenceConfig,
+    source: FlowSource,
+    predictor: Option<&Predictor>,
+    iters: usize,
+) -> Result<(ClipData, Option<f64>)> {
+    let scene = &cfg.scene;
+    let truth = Truth::of(scene)?;
+    match (source, predictor) {
+        (FlowSource::Truth, _) => {
+            let flows = (0..scene.frames - 1)
+                .into_par_iter()
+                .map(|n| scene.flow(n))
+                .collect::<Result<Vec<_>>>()?;
+            Ok((ClipData { truth, flows }, None))
+        }
+        (FlowSource::Mms, Some(p)) => {
+            let camera = cfg.camera()?;
+            let frames = (0..scene.frames)
+                .into_par_iter()
+                .map(|n| {
+                    let seed = rng::derive(scene.seed, &[rng::purpose::NOISE_FRAME1, n as u64]);
+                    camera.apply(&scene.frame(n)?, seed)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let started = std::time::Instant::now();
+            let flows = frames
+                .windows(2)
+                .map(|w| p.predict(&w[0], &w[1], iters))
+                .collect::<Result<Vec<_>>>()?;
+            let ms = started.elapsed().as_secs_f64() * 1e3 / flows.len() as f64;
+            Ok((ClipData { truth, flows }, Some(ms)))
+        }
+        (FlowSource::Mms, None) => Err(Error::invalid("flow", "MMS flow needs weights")),
+    }
+}
+
+/// Tracks one clip's flows with one predictor.
+pub fn track_clip(data: &ClipData, opts: &TrackOptions) -> Result<Tracks> {
+    track_sequence(
+        data.flows
+            .iter()
+            .enumerate()
+            .map(|(n, f)| Ok((format!("frame {n}"), f.clone()))),
+        opts,
+    )
+}
+
+/// Runs the experiment; `on_tracks` sees every (clip, predictor, tracks, truth) for plots.
+pub fn run(
+    cfg: &ExperimentConfig,
+    mut on_tracks: impl FnMut(&str, &str, &Tracks, &Truth) -> Result<()>,
+) -> Result<ExperimentReport> {
+    cfg.validate()?;
+    let predictor = match cfg.flow {
+        FlowSource::Mms => Some(Predictor::load(&cfg.weights)?),
+        FlowSource::Truth => None,
+    };
+    let mut rows = Vec::new();
+    let mut switches = Vec::new();
+    let mut flow_ms = Vec::new();
+    for clip in &cfg.clips {
+        let (data, ms) = clip_flows(&clip.clip, cfg.flow, predictor.as_ref(), cfg.iters)?;
+        flow_ms.extend(ms);
+        for p in &cfg.predictors {
+            let opts = TrackOptions {
+                tracker: TrackerConfig {
+                    mtp: p.mtp.clone(),
+                    ..TrackerConfig::default()
+                },
+                horizons: cfg.horizons.clone(),
+                threshold: cfg.threshold,
+                min_area: cfg.min_area,
+            };
+            let tracks = track_clip(&data, &opts)?;
+            on_tracks(&clip.name, &p.name, &tracks, &data.truth)?;
+            let report = evaluate(&tracks, &data.truth)?;
+            let ms = tracks.ms_per_frame.unwrap_or(f64::NAN);
+            for o in report.objects.iter().filter(|o| o.truth_index.is_some()) {
+                for e in &o.horizons {
+                    rows.push(Row {
+                        clip: clip.name.clone(),
+                        predictor: p.name.clone(),
+                        object: o.truth_index,
+                        track_id: Some(o.id),
+                        error: e.clone(),
+                        ms_per_frame: ms,
+                    });
+                }
+            }
+            for e in &report.overall {
+                rows.push(Row {
+                    clip: clip.name.clone(),
+                    predictor: p.name.clone(),
+                    object: None,
+                    track_id: None,
+                    error: e.clone(),
+                    ms_per_frame: ms,
+                });
+            }
+            switches.push((clip.name.clone(), p.name.clone(), report.id_switches));
+        }
+    }
+    Ok(ExperimentReport {
+        flow: cfg.flow,
+        flow_ms_per_frame: (!flow_ms.is_empty())
+            .then(|| flow_ms.iter().sum::<f64>() / flow_ms.len() as f64),
+        rows,
+        id_switches: switches,
+    })
+}
+
+/// The report as a text table.
+pub fn table(r: &ExperimentReport) -> String {
+    let mut s = format!(
+        "{:<12} {:<22} {:>6} {:>7} {:>6} {:>9} {:>9} {:>9} {:>8}\n",
+        "clip", "predictor", "object", "horizon", "count", "RMSE_X", "RMSE_Y", "RMSE_2D", "ms/frame"
+    );
+    for row in &r.rows {
+        let obj = row.object.map_or("all".to_string(), |o| o.to_string());
+        s += &format!(
+            "{:<12} {:<22} {:>6} {:>7} {:>6} {:>9.2} {:>9.2} {:>9.2} {:>8.3}\n",
+            row.clip,
+            row.predictor,
+            obj,
+            row.error.horizon,
+            row.error.count,
+            row.error.rmse_x,
+            row.error.rmse_y,
+            row.error.rmse_2d,
+            row.ms_per_frame
+        );
+    }
+    for (c, p, n) in &r.id_switches {
+        if *n > 0 {
+            s += &format!("{c} / {p}: {n} ID switches\n");
+        }
+    }
+    if let Some(ms) = r.flow_ms_per_frame {
+        s += &format!("MMS flow: {ms:.0} ms per frame\n");
+    }
+    s
+}
