@@ -1,8 +1,12 @@
 //! `pins track` on a folder of flows: IDs, predictions at the horizons, and bad input.
 
+use std::path::Path;
 use std::process::Command;
 
 use pins::Flow;
+
+mod common;
+use common::{failed, ok, pins};
 
 /// A square of `side` px moving by (vx, vy) per frame from (x0, y0), as a flow map.
 fn square_flow(h: usize, w: usize, objects: &[(f64, f64, f32, f32)], n: usize) -> Flow {
@@ -81,4 +85,233 @@ fn tracks_two_objects_and_rejects_bad_folders() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("0099.flo"));
     assert!(!d.path().join("x").join("tracks.json").exists());
+}
+
+/// Writes a clip config and renders it with `pins track render`.
+fn render(dir: &Path, scene: serde_json::Value) -> std::path::PathBuf {
+    let cfg = dir.join("clip.json");
+    std::fs::write(&cfg, serde_json::json!({ "scene": scene }).to_string()).unwrap();
+    let out = dir.join("clip");
+    ok(&pins(&[
+        "track",
+        "render",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    out
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn crossing_objects_keep_their_ids_and_are_scored_per_horizon() {
+    let d = tempfile::tempdir().unwrap();
+    // Two discs on straight lines that cross (one passes in front of the other, so their
+    // regions merge and split), and a third that enters from the right and leaves at the left.
+    let clip = render(
+        d.path(),
+        serde_json::json!({
+            "width": 200, "height": 120, "frames": 60, "seed": 3,
+            "objects": [
+                {"path": "line", "radius": 8, "from": [0.1, 0.3], "to": [0.9, 0.7]},
+                {"path": "line", "radius": 8, "from": [0.1, 0.7], "to": [0.9, 0.3]},
+                {"path": "line", "radius": 7, "from": [1.1, 0.15], "to": [-0.1, 0.15]}
+            ]
+        }),
+    );
+    assert_eq!(std::fs::read_dir(clip.join("frames")).unwrap().count(), 60);
+    assert_eq!(std::fs::read_dir(clip.join("flows")).unwrap().count(), 59);
+    let truth = json(&clip.join("truth.json"));
+    assert_eq!(truth["objects"][2]["visible"][0], false);
+    assert_eq!(truth["objects"][2]["visible"][30], true);
+
+    let out = d.path().join("tracked");
+    let truth_path = clip.join("truth.json");
+    ok(&pins(&[
+        "track",
+        "--flows",
+        clip.join("flows").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--truth",
+        truth_path.to_str().unwrap(),
+        "--horizons",
+        "1,10",
+    ]));
+    let tracks = json(&out.join("tracks.json"));
+    assert_eq!(tracks["objects"].as_array().unwrap().len(), 3, "{tracks}");
+    for o in tracks["objects"].as_array().unwrap() {
+        assert!(out.join(format!("plot_id{}.png", o["id"])).exists());
+        for f in o["frames"].as_array().unwrap() {
+            for p in f["predicted"].as_object().unwrap().values() {
+                assert!(p[0].as_f64().unwrap().is_finite() && p[1].as_f64().unwrap().is_finite());
+            }
+        }
+    }
+    let report_path = d.path().join("report.json");
+    let table = ok(&pins(&[
+        "track",
+        "eval",
+        "--tracks",
+        out.join("tracks.json").to_str().unwrap(),
+        "--truth",
+        truth_path.to_str().unwrap(),
+        "--out",
+        report_path.to_str().unwrap(),
+    ]));
+    assert!(table.contains("RMSE_2D"), "{table}");
+    let r = json(&report_path);
+    assert_eq!(r["id_switches"], 0, "{table}");
+    assert_eq!(r["missed"].as_array().unwrap().len(), 0, "{table}");
+    for o in r["objects"].as_array().unwrap() {
+        assert!(
+            o["truth_index"].is_u64(),
+            "every track follows an object: {table}"
+        );
+        // Straight lines at constant speed from exact flow: sub-pixel one frame ahead.
+        let h1 = &o["horizons"][0];
+        assert_eq!(h1["horizon"], 1);
+        assert!(h1["rmse_2d"].as_f64().unwrap() < 1.0, "{table}");
+    }
+
+    // A truth of another clip length is refused by name.
+    let mut bad = truth.clone();
+    bad["frames"] = serde_json::json!(61);
+    let bad_path = d.path().join("bad_truth.json");
+    std::fs::write(&bad_path, bad.to_string()).unwrap();
+    let err = failed(&pins(&[
+        "track",
+        "eval",
+        "--tracks",
+        out.join("tracks.json").to_str().unwrap(),
+        "--truth",
+        bad_path.to_str().unwrap(),
+    ]));
+    assert!(err.contains("bad_truth.json"), "{err}");
+}
+
+#[test]
+fn frames_are_tracked_through_the_shipped_network() {
+    let d = tempfile::tempdir().unwrap();
+    let clip = render(
+        d.path(),
+        serde_json::json!({
+            "width": 96, "height": 64, "frames": 5, "seed": 4,
+            "objects": [{"path": "line", "radius": 8, "from": [0.3, 0.5], "to": [0.7, 0.5]}]
+        }),
+    );
+    let out = d.path().join("tracked");
+    let msg = ok(&pins(&[
+        "track",
+        "--frames",
+        clip.join("frames").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--iters",
+        "4",
+        "--horizons",
+        "1,2",
+    ]));
+    assert!(msg.contains("MMS flow"), "{msg}");
+    let tracks = json(&out.join("tracks.json"));
+    assert!(tracks["objects"].is_array() && tracks["ms_per_frame"].as_f64().is_some());
+    // --flows and --frames together are refused.
+    failed(&pins(&[
+        "track",
+        "--frames",
+        clip.join("frames").to_str().unwrap(),
+        "--flows",
+        clip.join("flows").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+}
+
+#[test]
+fn leaving_and_reentering_still_objects_and_bad_flows() {
+    let d = tempfile::tempdir().unwrap();
+    let flows = d.path().join("flows");
+    // Moving right for 15 frames, gone (still: zero flow) for 10, then back moving left at ±π.
+    for n in 0..40 {
+        let f = if n < 15 {
+            square_flow(80, 120, &[(20.0, 40.0, 4.0, 0.0)], n)
+        } else if n < 25 {
+            Flow::zeros(80, 120)
+        } else {
+            square_flow(80, 120, &[(110.0, 40.0, -4.0, 0.0)], n - 25)
+        };
+        pins::io::write_flo(&flows.join(format!("{n:04}.flo")), &f).unwrap();
+    }
+    let out = d.path().join("out");
+    ok(&pins(&[
+        "track",
+        "--flows",
+        flows.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--horizons",
+        "1,30",
+        "--no-plots",
+    ]));
+    let tracks = json(&out.join("tracks.json"));
+    let last = tracks["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|o| o["frames"].as_array().unwrap().clone())
+        .max_by_key(|f| f["frame"].as_u64().unwrap())
+        .unwrap();
+    // The last prediction points left: the wrap-around at ±π did not flip it.
+    assert!(
+        last["predicted"]["30"][0].as_f64().unwrap() < last["centroid"][0].as_f64().unwrap(),
+        "{last}"
+    );
+    assert!(!out.join("plot_id1.png").exists(), "--no-plots");
+
+    // A flow with a NaN vector: a clear error naming the file, no output.
+    let mut f = Flow::zeros(80, 120);
+    f.set(3, 4, f32::NAN, 0.0);
+    pins::io::write_flo(&flows.join("0040.flo"), &f).unwrap();
+    let x = d.path().join("x");
+    let err = failed(&pins(&[
+        "track",
+        "--flows",
+        flows.to_str().unwrap(),
+        "--out",
+        x.to_str().unwrap(),
+    ]));
+    assert!(
+        err.contains("0040.flo") && err.contains("non-finite"),
+        "{err}"
+    );
+    assert!(!x.join("tracks.json").exists());
+    // A bad clip config names the key.
+    let cfg = d.path().join("clip.json");
+    std::fs::write(&cfg, r#"{"scene": {"frames": 1}}"#).unwrap();
+    let err = failed(&pins(&[
+        "track",
+        "render",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        d.path().join("r").to_str().unwrap(),
+    ]));
+    assert!(err.contains("frames"), "{err}");
+    assert!(!d.path().join("r").join("truth.json").exists());
+}
+
+#[test]
+fn the_shipped_experiments_parse() {
+    for name in ["track_table_s5", "track_note_s14", "track_table_s5_mms"] {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("experiments")
+            .join(format!("{name}.json"));
+        let cfg = pins::track::experiment::ExperimentConfig::from_file(&p)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!cfg.clips.is_empty() && !cfg.predictors.is_empty());
+    }
 }

@@ -85,34 +85,30 @@ pub fn render_sequence(cfg: &SequenceConfig, dir: &Path) -> Result<Truth> {
     if cfg.save_clean {
         std::fs::create_dir_all(dir.join("clean")).map_err(|e| Error::io(dir.join("clean"), e))?;
     }
-    (0..scene.frames).into_par_iter().try_for_each(|n| -> Result<()> {
-        let clean = scene.frame(n)?;
-        let seed = rng::derive(scene.seed, &[rng::purpose::NOISE_FRAME1, n as u64]);
-        let img = camera.apply(&clean, seed)?;
-        io::write_image(&dir.join("frames").join(format!("{n:05}.png")), &img, depth)?;
-        if cfg.save_clean {
-            io::write_image(
-                &dir.join("clean").join(format!("{n:05}.png")),
-                &clean,
-                BitDepth::Sixteen,
-            )?;
-        }
-        if n + 1 < scene.frames {
-            io::write_flo(
-                &dir.join("flows").join(format!("{n:05}.flo")),
-                &scene.flow(n)?,
-            )?;
-        }
-        Ok(())
-    })?;
-    io::write_bytes_atomic(
-        &dir.join("truth.json"),
-        json(&truth)?.as_bytes(),
-    )?;
-    io::write_bytes_atomic(
-        &dir.join("config.json"),
-        json(cfg)?.as_bytes(),
-    )?;
+    (0..scene.frames)
+        .into_par_iter()
+        .try_for_each(|n| -> Result<()> {
+            let clean = scene.frame(n)?;
+            let seed = rng::derive(scene.seed, &[rng::purpose::NOISE_FRAME1, n as u64]);
+            let img = camera.apply(&clean, seed)?;
+            io::write_image(&dir.join("frames").join(format!("{n:05}.png")), &img, depth)?;
+            if cfg.save_clean {
+                io::write_image(
+                    &dir.join("clean").join(format!("{n:05}.png")),
+                    &clean,
+                    BitDepth::Sixteen,
+                )?;
+            }
+            if n + 1 < scene.frames {
+                io::write_flo(
+                    &dir.join("flows").join(format!("{n:05}.flo")),
+                    &scene.flow(n)?,
+                )?;
+            }
+            Ok(())
+        })?;
+    io::write_bytes_atomic(&dir.join("truth.json"), json(&truth)?.as_bytes())?;
+    io::write_bytes_atomic(&dir.join("config.json"), json(cfg)?.as_bytes())?;
     Ok(truth)
 }
 

@@ -408,7 +408,11 @@ pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     if v.len() < 2 {
         return Err(Error::invalid(
             "frames",
-            format!("{}: need at least two images, found {}", dir.display(), v.len()),
+            format!(
+                "{}: need at least two images, found {}",
+                dir.display(),
+                v.len()
+            ),
         ));
     }
     Ok(v)

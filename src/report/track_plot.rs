@@ -21,7 +21,10 @@ fn star(r: f64) -> Vec<(i32, i32)> {
         .map(|k| {
             let a = std::f64::consts::PI * (k as f64 / 5.0 - 0.5);
             let rad = if k % 2 == 0 { r } else { 0.4 * r };
-            ((rad * a.cos()).round() as i32, (rad * a.sin()).round() as i32)
+            (
+                (rad * a.cos()).round() as i32,
+                (rad * a.sin()).round() as i32,
+            )
         })
         .collect()
 }
@@ -84,7 +87,10 @@ pub fn plot_track(
                     None => format!("ID {}", track.id),
                 }
             } else {
-                format!("ID {}: all-time prediction, {horizon} frames ahead", track.id)
+                format!(
+                    "ID {}: all-time prediction, {horizon} frames ahead",
+                    track.id
+                )
             };
             let mut chart = ChartBuilder::on(panel)
                 .caption(title, ("sans-serif", 16))

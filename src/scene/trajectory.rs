@@ -126,7 +126,10 @@ impl TrajectoryConfig {
             if 2.0 * o.radius >= self.width.min(self.height) as f64 {
                 return Err(Error::invalid(
                     format!("scene.objects[{i}].radius"),
-                    format!("{} does not fit a {}x{} frame", o.radius, self.width, self.height),
+                    format!(
+                        "{} does not fit a {}x{} frame",
+                        o.radius, self.width, self.height
+                    ),
                 ));
             }
         }
@@ -250,7 +253,10 @@ impl TrajectoryConfig {
         if n >= end {
             return Err(Error::invalid(
                 "frame",
-                format!("{n} is past the clip's last index {}", end.saturating_sub(1)),
+                format!(
+                    "{n} is past the clip's last index {}",
+                    end.saturating_sub(1)
+                ),
             ));
         }
         Ok(())

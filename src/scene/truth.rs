@@ -73,7 +73,10 @@ impl Truth {
     /// Every object has one finite centre and one visibility flag per frame.
     pub fn validate(&self) -> Result<()> {
         if self.frames == 0 || self.objects.is_empty() {
-            return Err(Error::invalid("truth", "needs frames and at least one object"));
+            return Err(Error::invalid(
+                "truth",
+                "needs frames and at least one object",
+            ));
         }
         for o in &self.objects {
             if o.centroids.len() != self.frames || o.visible.len() != self.frames {

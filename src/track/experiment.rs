@@ -276,7 +276,15 @@ pub fn run(
 pub fn table(r: &ExperimentReport) -> String {
     let mut s = format!(
         "{:<12} {:<22} {:>6} {:>7} {:>6} {:>9} {:>9} {:>9} {:>8}\n",
-        "clip", "predictor", "object", "horizon", "count", "RMSE_X", "RMSE_Y", "RMSE_2D", "ms/frame"
+        "clip",
+        "predictor",
+        "object",
+        "horizon",
+        "count",
+        "RMSE_X",
+        "RMSE_Y",
+        "RMSE_2D",
+        "ms/frame"
     );
     for row in &r.rows {
         let obj = row.object.map_or("all".to_string(), |o| o.to_string());

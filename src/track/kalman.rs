@@ -7,7 +7,8 @@
 pub struct ConstantVelocity {
     pub x: [f64; 2],
     pub p: [[f64; 2]; 2],
-    /// Process noise (acceleration variance) and measurement noise variance.
+    /// Process noise (variance of the frame-to-frame velocity change) and measurement noise
+    /// variance.
     pub q: f64,
     pub r: f64,
     initialised: bool,
@@ -29,13 +30,14 @@ impl ConstantVelocity {
         let [p, v] = self.x;
         self.x = [p + v, v];
         let pm = self.p;
-        // F P Fᵀ with F = [[1, 1], [0, 1]], plus Q for a white-acceleration model.
+        // F P Fᵀ with F = [[1, 1], [0, 1]], plus Q.
         let a = pm[0][0] + pm[0][1] + pm[1][0] + pm[1][1];
         let b = pm[0][1] + pm[1][1];
         let c = pm[1][0] + pm[1][1];
         let d = pm[1][1];
-        let q = self.q;
-        self.p = [[a + q / 4.0, b + q / 2.0], [c + q / 2.0, d + q]];
+        // Q drives the velocity alone: the velocity is the displacement to the next frame (what
+        // an optical flow measures), so x(n + 1) = x(n) + v(n) holds exactly.
+        self.p = [[a, b], [c, d + self.q]];
         self.symmetrise();
     }
 
@@ -170,14 +172,18 @@ mod tests {
             }
         }
         // A velocity measurement removes the lag of a position-only filter on accelerating motion.
-        let (mut pos, mut both) = (ConstantVelocity::new(0.05, 1.0), ConstantVelocity::new(0.05, 1.0));
+        let (mut pos, mut both) = (
+            ConstantVelocity::new(0.5, 1.0),
+            ConstantVelocity::new(0.5, 1.0),
+        );
         for n in 0..60 {
             let t = n as f64;
             for f in [&mut pos, &mut both] {
                 f.predict();
                 f.update(0.05 * t * t);
             }
-            both.update_velocity(0.1 * t + 0.05, 0.01);
+            // The flow of frame n: the displacement to frame n + 1.
+            both.update_velocity(0.1 * t + 0.05, 0.25);
             assert!(both.covariance_ok());
         }
         let truth = 0.05 * 59.0 * 59.0;

@@ -128,8 +128,10 @@ impl Mtp {
                 self.y.update(r.centroid.1);
                 // The region's flow is the object's displacement to the next frame.
                 if let Some(d) = r.direction {
-                    self.x.update_velocity(r.speed * d.cos(), self.config.motion_r);
-                    self.y.update_velocity(r.speed * d.sin(), self.config.motion_r);
+                    self.x
+                        .update_velocity(r.speed * d.cos(), self.config.motion_r);
+                    self.y
+                        .update_velocity(r.speed * d.sin(), self.config.motion_r);
                 }
                 let s = self.speed.step(r.speed);
                 let d = r.direction.map(|d| {
@@ -141,7 +143,8 @@ impl Mtp {
             None => (self.speed.step(f64::NAN), None),
         };
         // The flow at frame n is the motion over [n, n + 1]: its time is n + ½.
-        self.history.push_back((frame as f64 + 0.5, speed, direction));
+        self.history
+            .push_back((frame as f64 + 0.5, speed, direction));
         while self.history.len() > self.config.window {
             self.history.pop_front();
         }
@@ -228,7 +231,10 @@ mod tests {
         }
         let e = e.unwrap();
         let (dx, dy) = (e.path[9].0 - e.centroid.0, e.path[9].1 - e.centroid.1);
-        assert!((dx - 20.0).abs() < 0.5 && (dy + 10.0).abs() < 0.5, "{dx} {dy}");
+        assert!(
+            (dx - 20.0).abs() < 0.5 && (dy + 10.0).abs() < 0.5,
+            "{dx} {dy}"
+        );
         assert!(
             Mtp::new(MtpConfig {
                 window: 0,

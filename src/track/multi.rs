@@ -1,8 +1,8 @@
 //! Many objects (Movie S2): every region above a minimum area is a detection; tracks keep
 //! their IDs through optimal assignment on the distance to each track's predicted position,
 //! with a gate; a track is confirmed after `confirm` consecutive hits and ended after `patience`
-//! consecutive misses, so one missed detection does not change an ID. Each track has its own
-//! predictor.
+//! consecutive misses, so one missed detection does not change an ID. When two objects merge
+//! into one region, the tracks on it coast until it splits. Each track has its own predictor.
 
 use serde::{Deserialize, Serialize};
 
@@ -104,19 +104,44 @@ impl Tracker {
             })
             .collect();
         let matches = assign(&cost);
+        // A merge: a confirmed track left without a detection whose prediction lies inside a
+        // detection given to another track (within that region's equivalent radius). Both
+        // objects are then hidden in one region, whose centre and flow belong to neither, so
+        // every track on it coasts on its own motion until the region splits again.
+        let mut shared = vec![false; detections.len()];
+        for (t, m) in self.tracks.iter().zip(&matches) {
+            if m.is_some() || !t.confirmed {
+                continue;
+            }
+            for (j, d) in detections.iter().enumerate() {
+                let reach = (d.pixels as f64 / std::f64::consts::PI).sqrt();
+                let dist = (d.centroid.0 - t.predicted.0).hypot(d.centroid.1 - t.predicted.1);
+                if dist <= reach && matches.contains(&Some(j)) {
+                    shared[j] = true;
+                }
+            }
+        }
         let mut used = vec![false; detections.len()];
         let mut out = Vec::new();
         let horizon = horizon.max(1);
         for (t, m) in self.tracks.iter_mut().zip(&matches) {
-            let det = m.map(|j| {
+            let det = m.and_then(|j| {
                 used[j] = true;
-                &detections[j]
+                (!shared[j]).then(|| &detections[j])
             });
+            // Inside a merged region the object is seen, only not separately: no miss.
+            let in_merge = m.is_some_and(|j| shared[j])
+                || (m.is_none()
+                    && detections.iter().enumerate().any(|(j, d)| {
+                        shared[j]
+                            && (d.centroid.0 - t.predicted.0).hypot(d.centroid.1 - t.predicted.1)
+                                <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
+                    }));
             let e = t.mtp.step(frame, det, horizon)?;
             if det.is_some() {
                 t.hits += 1;
                 t.misses = 0;
-            } else {
+            } else if !in_merge {
                 t.misses += 1;
             }
             t.confirmed |= t.hits >= self.config.confirm;
