@@ -1,27 +1,40 @@
-//! Every shipped experiment config parses, validates and names only known keys.
+//! Every shipped experiment config parses, validates and names only known keys: training
+//! configs (`train_*` with a model), tracking clips and tracking experiments (`track_*`), and generator
+//! configs (everything else).
 
 use std::path::Path;
 
 #[test]
 fn every_experiment_config_is_valid() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
-    let mut n = 0;
+    let (mut generator, mut train, mut clips, mut tracking) = (0, 0, 0, 0);
     for entry in std::fs::read_dir(&dir).unwrap() {
         let p = entry.unwrap().path();
-        if p.extension().is_some_and(|e| e == "json")
-            && p.file_name().is_some_and(|f| f != "train_small.json")
-        {
-            pins::dataset::GeneratorConfig::from_file(&p)
-                .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-            n += 1;
+        if p.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        let text = std::fs::read_to_string(&p).unwrap();
+        fn fail<T>(p: &Path) -> impl Fn(pins::Error) -> T + '_ {
+            move |e| panic!("{}: {e}", p.display())
+        }
+        if name.starts_with("train_") && text.contains("\"model\"") {
+            let cfg = pins::flow::train::TrainConfig::from_file(&p).unwrap_or_else(fail(&p));
+            assert_eq!(cfg.model, "mms-small", "{name}");
+            train += 1;
+        } else if name.starts_with("track_") && text.contains("\"clips\"") {
+            let cfg =
+                pins::track::experiment::ExperimentConfig::from_file(&p).unwrap_or_else(fail(&p));
+            assert!(!cfg.clips.is_empty() && !cfg.predictors.is_empty());
+            tracking += 1;
+        } else if name.starts_with("track_") {
+            pins::dataset::sequence::SequenceConfig::from_file(&p).unwrap_or_else(fail(&p));
+            clips += 1;
+        } else {
+            pins::dataset::GeneratorConfig::from_file(&p).unwrap_or_else(fail(&p));
+            generator += 1;
         }
     }
-    assert!(n >= 10, "found only {n} configs");
-}
-
-#[test]
-fn the_shipped_training_config_is_valid() {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/train_small.json");
-    let cfg = pins::flow::train::TrainConfig::from_file(&p).unwrap();
-    assert_eq!(cfg.model, "mms-small");
+    assert!(generator >= 10, "found only {generator} generator configs");
+    assert!(train >= 2 && clips >= 4 && tracking >= 3);
 }

@@ -303,15 +303,3 @@ fn leaving_and_reentering_still_objects_and_bad_flows() {
     assert!(err.contains("frames"), "{err}");
     assert!(!d.path().join("r").join("truth.json").exists());
 }
-
-#[test]
-fn the_shipped_experiments_parse() {
-    for name in ["track_table_s5", "track_note_s14", "track_table_s5_mms"] {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("experiments")
-            .join(format!("{name}.json"));
-        let cfg = pins::track::experiment::ExperimentConfig::from_file(&p)
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(!cfg.clips.is_empty() && !cfg.predictors.is_empty());
-    }
-}

@@ -4,7 +4,9 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fft2::{Fft2, next_fast_len};
+use std::sync::Mutex;
+
+use super::fft2::{Fft2, Fft2Scratch, next_fast_len};
 
 /// How a convolution is computed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -138,10 +140,12 @@ pub struct FftConvolver {
     kw: usize,
     fft: Fft2,
     kernel_spectrum: Vec<rustfft::num_complex::Complex32>,
+    /// Grids and spectra of earlier calls, reused so frames after the first allocate nothing.
+    pool: Mutex<Vec<(Vec<f32>, Fft2Scratch)>>,
 }
 
 impl FftConvolver {
-    /// Prepares the `[kh, kw]` kernel for planes `[height, width]`.
+    /// Prepares `kernel` (`kh × kw`, row-major) for planes of `height × width`.
     pub fn new(kernel: &[f32], kh: usize, kw: usize, height: usize, width: usize) -> Self {
         let (m, n) = fft_grid(height, width, kh, kw);
         let fft = Fft2::new(m, n);
@@ -157,28 +161,46 @@ impl FftConvolver {
             kw,
             fft,
             kernel_spectrum,
+            pool: Mutex::new(Vec::new()),
         }
     }
 
-    /// Convolves one plane `[height, width]` (the size given at construction).
+    /// Convolves one `height × width` plane (mirror boundary), same size out.
     pub fn convolve(&self, plane: &[f32]) -> Vec<f32> {
+        let mut out = vec![0.0f32; self.height * self.width];
+        self.convolve_into(plane, 1.0, &mut out);
+        out
+    }
+
+    /// Convolves one plane times `gain` into `out` (`height × width`).
+    pub fn convolve_into(&self, plane: &[f32], gain: f32, out: &mut [f32]) {
         let (h, w, kh, kw) = (self.height, self.width, self.kh, self.kw);
         let (m, n) = (self.fft.rows(), self.fft.cols());
-        // The mirrored plane goes straight into the zero-filled FFT grid.
-        let mut grid = vec![0.0f32; m * n];
+        // A poisoned lock only means another thread panicked; the buffers are still valid.
+        let taken = self.pool.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let (mut grid, mut scratch) =
+            taken.unwrap_or_else(|| (vec![0.0f32; m * n], self.fft.scratch()));
+        let filled = h + kh - 1;
         pad_mirror_into(plane, h, w, kh / 2, kw / 2, &mut grid, n);
-        let mut spec = self.fft.forward(&mut grid);
-        spec.par_iter_mut()
-            .zip(self.kernel_spectrum.par_iter())
-            .for_each(|(s, k)| *s *= k);
-        self.fft.inverse(spec, &mut grid);
-        // The circular convolution of the padded plane holds the wanted output at an offset of
-        // (kh − 1, kw − 1); nothing wraps around because the grid holds the whole padded plane.
-        let mut out = vec![0.0f32; h * w];
-        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            row.copy_from_slice(&grid[(y + kh - 1) * n + kw - 1..][..w]);
-        });
-        out
+        // The real transforms overwrite their input, so the zero margin is restored each time.
+        let wp = w + kw - 1;
+        grid[..filled * n]
+            .par_chunks_mut(n)
+            .for_each(|row| row[wp..].fill(0.0));
+        self.fft.filter_into(
+            &mut grid,
+            filled,
+            &self.kernel_spectrum,
+            &mut scratch,
+            (kh - 1, h),
+            (kw - 1, w),
+            gain,
+            out,
+        );
+        self.pool
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((grid, scratch));
     }
 }
 

@@ -92,6 +92,12 @@ impl Blur {
     }
 
     fn apply(&self, image: &Image) -> Result<Image> {
+        self.apply_gain(image, 1.0)
+    }
+
+    /// Convolves every channel with its PSF, times `gain` (a brightness folded into the blur:
+    /// both are linear, so this saves a pass over the frame).
+    fn apply_gain(&self, image: &Image, gain: f32) -> Result<Image> {
         let (c, h, w) = image.shape();
         let psf = self.kernel_for(c)?;
         let (kh, kw) = psf.size();
@@ -99,23 +105,31 @@ impl Blur {
             ConvMethod::Auto => choose_method(h, w, kh, kw),
             m => m,
         };
-        let kernel = |ch: usize| psf.channel(if psf.channels() == 1 { 0 } else { ch });
-        let planes: Vec<Vec<f32>> = match method {
+        let pick = |ch: usize| if psf.channels() == 1 { 0 } else { ch };
+        let mut out = Image::zeros(c, h, w);
+        match method {
             ConvMethod::Fft => {
                 let plans = self.plans_for(psf, c, h, w);
-                (0..c)
-                    .into_par_iter()
-                    .map(|ch| {
-                        plans[if psf.channels() == 1 { 0 } else { ch }].convolve(image.plane(ch))
-                    })
-                    .collect()
+                out.data_mut()
+                    .par_chunks_mut(h * w)
+                    .enumerate()
+                    .for_each(|(ch, dst)| {
+                        plans[pick(ch)].convolve_into(image.plane(ch), gain, dst)
+                    });
             }
-            _ => (0..c)
-                .into_par_iter()
-                .map(|ch| convolve_direct(image.plane(ch), h, w, kernel(ch), kh, kw))
-                .collect(),
-        };
-        Image::from_vec(c, h, w, planes.concat())
+            _ => out
+                .data_mut()
+                .par_chunks_mut(h * w)
+                .enumerate()
+                .for_each(|(ch, dst)| {
+                    let plane =
+                        convolve_direct(image.plane(ch), h, w, psf.channel(pick(ch)), kh, kw);
+                    for (d, v) in dst.iter_mut().zip(plane) {
+                        *d = v * gain;
+                    }
+                }),
+        }
+        Ok(out)
     }
 
     fn plans_for(&self, psf: &Psf, channels: usize, h: usize, w: usize) -> Arc<Vec<FftConvolver>> {
@@ -186,8 +200,12 @@ impl Camera {
     /// Images `scene` (linear intensity in [0, 1]) through the camera. `seed` keys the noise.
     pub fn apply(&self, scene: &Image, seed: u64) -> Result<Image> {
         scene.check_finite("input image")?;
-        let mut img = scene.clone();
-        let mut i = 0;
+        // Brightness then blur is one pass (the blur writes a new frame, so no copy either).
+        let (mut img, mut i) = match &self.stages[..] {
+            [Stage::Brightness(k), Stage::Blur(b), ..] => (b.apply_gain(scene, *k)?, 2),
+            [Stage::Blur(b), ..] => (b.apply(scene)?, 1),
+            _ => (scene.clone(), 0),
+        };
         while i < self.stages.len() {
             // The tail clamp → gamma → quantise(8) is one lookup when the table exists.
             let tail = &self.stages[i..];
