@@ -15,7 +15,7 @@ use crate::scene::trajectory::TrajectoryConfig;
 use crate::scene::truth::Truth;
 
 /// A clip: the scene and the camera it is seen through.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SequenceConfig {
     pub scene: TrajectoryConfig,
@@ -24,15 +24,6 @@ pub struct SequenceConfig {
     pub save_clean: bool,
 }
 
-impl Default for SequenceConfig {
-    fn default() -> Self {
-        Self {
-            scene: TrajectoryConfig::default(),
-            camera: CameraConfig::default(),
-            save_clean: false,
-        }
-    }
-}
 
 impl SequenceConfig {
     /// Reads a JSON config; relative PSF paths are relative to the file.

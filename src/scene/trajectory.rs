@@ -117,7 +117,7 @@ impl TrajectoryConfig {
             let finite = o.from.iter().chain(&o.to).all(|v| v.is_finite())
                 && o.start.is_finite()
                 && o.rate.is_finite();
-            if !(o.radius > 1.0 && o.radius.is_finite()) || !finite {
+            if !(o.radius > 1.0 && o.radius.is_finite() && finite) {
                 return Err(Error::invalid(
                     format!("scene.objects[{i}]"),
                     "radius must be > 1 and every number finite",
