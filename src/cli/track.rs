@@ -62,6 +62,10 @@ struct RunArgs {
     /// Smallest region (pixels) that is an object.
     #[arg(long, default_value_t = 20)]
     min_area: usize,
+    /// Raise the threshold to the median flow magnitude plus K robust standard deviations in
+    /// frames where the flow jitters (estimated flow); 0 turns it off.
+    #[arg(long, default_value_t = 3.0)]
+    noise_k: f64,
     /// Ground truth (truth.json from `pins track render`) to draw in the plots.
     #[arg(long)]
     truth: Option<PathBuf>,
@@ -141,10 +145,14 @@ fn run(a: RunArgs) -> Result<()> {
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;
+    if !(a.noise_k.is_finite() && a.noise_k >= 0.0) {
+        bail!("--noise-k must be finite and >= 0, got {}", a.noise_k);
+    }
     let opts = tr::TrackOptions {
         tracker,
         horizons: a.horizons,
         threshold: a.threshold,
+        noise_k: a.noise_k,
         min_area: a.min_area,
     };
     // Read the truth first so a bad file fails before any work.

@@ -24,7 +24,6 @@ pub struct SequenceConfig {
     pub save_clean: bool,
 }
 
-
 impl SequenceConfig {
     /// Reads a JSON config; relative PSF paths are relative to the file.
     pub fn from_file(path: &Path) -> Result<Self> {

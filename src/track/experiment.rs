@@ -67,6 +67,9 @@ pub struct ExperimentConfig {
     pub threshold: f64,
     #[serde(default = "default_min_area")]
     pub min_area: usize,
+    /// Robust noise floor of the threshold, in standard deviations (see `TrackOptions`).
+    #[serde(default = "default_noise_k")]
+    pub noise_k: f64,
 }
 
 fn default_source() -> FlowSource {
@@ -83,6 +86,9 @@ fn default_threshold() -> f64 {
 }
 fn default_min_area() -> usize {
     20
+}
+fn default_noise_k() -> f64 {
+    3.0
 }
 
 impl ExperimentConfig {
@@ -118,6 +124,9 @@ impl ExperimentConfig {
         }
         if !(self.threshold.is_finite() && self.threshold >= 0.0) {
             return Err(Error::invalid("threshold", "must be finite and >= 0"));
+        }
+        if !(self.noise_k.is_finite() && self.noise_k >= 0.0) {
+            return Err(Error::invalid("noise_k", "must be finite and >= 0"));
         }
         for c in &self.clips {
             c.clip.validate()?;
@@ -232,6 +241,7 @@ pub fn run(
                 },
                 horizons: cfg.horizons.clone(),
                 threshold: cfg.threshold,
+                noise_k: cfg.noise_k,
                 min_area: cfg.min_area,
             };
             let tracks = track_clip(&data, &opts)?;

@@ -59,6 +59,10 @@ pub struct TrackOptions {
     pub horizons: Vec<usize>,
     /// Flow magnitude (px/frame) above which a pixel moves.
     pub threshold: f64,
+    /// The threshold also rises to the frame's median magnitude plus this many robust standard
+    /// deviations (1.4826 × MAD), so the background jitter of an estimated flow is not motion;
+    /// on an exact flow of a still background this changes nothing. 0 turns it off.
+    pub noise_k: f64,
     pub min_area: usize,
 }
 
@@ -117,7 +121,8 @@ pub fn track_sequence(
             ));
         }
         size = Some(s);
-        let dets = regions(&flow, opts.threshold, opts.min_area)
+        let threshold = opts.threshold.max(noise_floor(&flow, opts.noise_k));
+        let dets = regions(&flow, threshold, opts.min_area)
             .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
         for t in tracker.step(frame, &dets, max_h)? {
             let e = &t.estimate;
@@ -146,4 +151,55 @@ pub fn track_sequence(
             .map(|(id, frames)| ObjectTrack { id, frames })
             .collect(),
     })
+}
+
+/// Median flow magnitude plus `k` robust standard deviations (1.4826 × the median absolute
+/// deviation); 0 when `k` is 0. Non-finite vectors are skipped here (the region finder rejects
+/// them with a clear error).
+pub fn noise_floor(flow: &Flow, k: f64) -> f64 {
+    if k <= 0.0 {
+        return 0.0;
+    }
+    let mut m: Vec<f32> = flow
+        .u()
+        .iter()
+        .zip(flow.v())
+        .map(|(a, b)| a.hypot(*b))
+        .filter(|v| v.is_finite())
+        .collect();
+    if m.is_empty() {
+        return 0.0;
+    }
+    let mid = m.len() / 2;
+    let median = *m.select_nth_unstable_by(mid, f32::total_cmp).1;
+    m.iter_mut().for_each(|v| *v = (*v - median).abs());
+    let mad = *m.select_nth_unstable_by(mid, f32::total_cmp).1;
+    (median + k as f32 * 1.4826 * mad) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_noise_floor_ignores_a_few_movers_and_rises_with_jitter() {
+        let mut f = Flow::zeros(20, 20);
+        for i in 0..40 {
+            f.set(i / 20, i % 20, 5.0, 0.0);
+        }
+        assert_eq!(
+            noise_floor(&f, 3.0),
+            0.0,
+            "exact flow of a still background"
+        );
+        let mut noisy = Flow::zeros(20, 20);
+        for y in 0..20 {
+            for x in 0..20 {
+                noisy.set(y, x, 1.0 + 0.5 * ((x * 7 + y * 3) % 5) as f32 / 4.0, 0.0);
+            }
+        }
+        let t = noise_floor(&noisy, 3.0);
+        assert!(t > 1.5 && t < 3.5, "{t}");
+        assert_eq!(noise_floor(&noisy, 0.0), 0.0);
+    }
 }
