@@ -124,6 +124,23 @@ fn crossing_objects_keep_their_ids_and_are_scored_per_horizon() {
         }),
     );
     assert_eq!(std::fs::read_dir(clip.join("frames")).unwrap().count(), 60);
+    // Rendering another clip into the same folder is refused; the same clip again is fine.
+    let other = d.path().join("other.json");
+    std::fs::write(
+        &other,
+        r#"{"scene": {"width": 64, "height": 48, "frames": 3}}"#,
+    )
+    .unwrap();
+    let err = failed(&pins(&[
+        "track",
+        "render",
+        "--config",
+        other.to_str().unwrap(),
+        "--out",
+        clip.to_str().unwrap(),
+    ]));
+    assert!(err.contains("another clip"), "{err}");
+    assert_eq!(std::fs::read_dir(clip.join("frames")).unwrap().count(), 60);
     assert_eq!(std::fs::read_dir(clip.join("flows")).unwrap().count(), 59);
     let truth = json(&clip.join("truth.json"));
     assert_eq!(truth["objects"][2]["visible"][0], false);

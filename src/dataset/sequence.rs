@@ -69,6 +69,7 @@ pub fn render_sequence(cfg: &SequenceConfig, dir: &Path) -> Result<Truth> {
         BitDepth::Eight
     };
     let scene = &cfg.scene;
+    claim(cfg, dir)?;
     for sub in ["frames", "flows"] {
         std::fs::create_dir_all(dir.join(sub)).map_err(|e| Error::io(dir.join(sub), e))?;
     }
@@ -100,6 +101,37 @@ pub fn render_sequence(cfg: &SequenceConfig, dir: &Path) -> Result<Truth> {
     io::write_bytes_atomic(&dir.join("truth.json"), json(&truth)?.as_bytes())?;
     io::write_bytes_atomic(&dir.join("config.json"), json(cfg)?.as_bytes())?;
     Ok(truth)
+}
+
+/// A clip folder holds one clip: rendering into a folder that holds another (a different
+/// `config.json`, or frames without one) would mix their frames, so it is refused.
+fn claim(cfg: &SequenceConfig, dir: &Path) -> Result<()> {
+    let existing = dir.join("config.json");
+    if existing.exists() {
+        let text = std::fs::read_to_string(&existing).map_err(|e| Error::io(&existing, e))?;
+        let same = serde_json::from_str::<SequenceConfig>(&text).is_ok_and(|c| c == *cfg);
+        if !same {
+            return Err(Error::invalid(
+                "--out",
+                format!(
+                    "{} holds another clip (its config.json differs); choose an empty folder",
+                    dir.display()
+                ),
+            ));
+        }
+    } else if ["frames", "flows"]
+        .iter()
+        .any(|sub| std::fs::read_dir(dir.join(sub)).is_ok_and(|mut d| d.next().is_some()))
+    {
+        return Err(Error::invalid(
+            "--out",
+            format!(
+                "{} already holds frames or flows without a config.json; choose an empty folder",
+                dir.display()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn json(v: &impl Serialize) -> Result<String> {
