@@ -29,6 +29,22 @@ fn star(r: f64) -> Vec<(i32, i32)> {
         .collect()
 }
 
+/// The runs of consecutive points inside `[0, w] × [0, h]`.
+fn in_frame_segments(points: &[(f64, f64)], w: f64, h: f64) -> Vec<Vec<(f64, f64)>> {
+    let mut out: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+    for &(x, y) in points {
+        if (0.0..=w).contains(&x) && (0.0..=h).contains(&y) {
+            if let Some(last) = out.last_mut() {
+                last.push((x, y));
+            }
+        } else if out.last().is_some_and(|l| !l.is_empty()) {
+            out.push(Vec::new());
+        }
+    }
+    out.retain(|s| !s.is_empty());
+    out
+}
+
 /// The snapshot frame of a track: K frames before its last observed frame when it is long
 /// enough (so the prediction can be compared with the path then taken), else its last frame.
 pub fn snapshot_index(track: &ObjectTrack, horizon: usize) -> Option<usize> {
@@ -152,11 +168,17 @@ pub fn plot_track(
                     .iter()
                     .filter_map(|f| f.predicted.get(&key).map(|p| (p[0], p[1])))
                     .collect();
-                chart
-                    .draw_series(LineSeries::new(all_time, RED.stroke_width(2)))
-                    .map_err(plot_err)?
-                    .label(format!("prediction at N+{horizon}"))
-                    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+                // Predictions outside the frame break the line instead of running along the edge.
+                for (i, seg) in in_frame_segments(&all_time, w, h).into_iter().enumerate() {
+                    let series = chart
+                        .draw_series(LineSeries::new(seg, RED.stroke_width(2)))
+                        .map_err(plot_err)?;
+                    if i == 0 {
+                        series
+                            .label(format!("prediction at N+{horizon}"))
+                            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+                    }
+                }
             }
             chart
                 .configure_series_labels()
