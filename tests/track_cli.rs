@@ -320,3 +320,65 @@ fn leaving_and_reentering_still_objects_and_bad_flows() {
     assert!(err.contains("frames"), "{err}");
     assert!(!d.path().join("r").join("truth.json").exists());
 }
+
+#[test]
+fn an_experiment_scores_every_predictor_and_the_fit_wins_on_a_spiral() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("spiral.json"),
+        r#"{"scene": {"width": 240, "height": 180, "frames": 90, "seed": 5,
+            "objects": [{"path": "spiral", "radius": 8, "start": 0.5}]}}"#,
+    )
+    .unwrap();
+    let cfg = d.path().join("exp.json");
+    std::fs::write(
+        &cfg,
+        r#"{"clips": [{"name": "spiral", "config": "spiral.json"}],
+            "predictors": [
+              {"name": "poly", "mtp": {"method": "poly", "order": 2, "window": 30}},
+              {"name": "cv", "mtp": {"method": "constant_velocity"}}],
+            "horizons": [1, 15]}"#,
+    )
+    .unwrap();
+    let out = d.path().join("out");
+    let table = ok(&pins(&[
+        "track",
+        "experiment",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(table.contains("RMSE_2D"), "{table}");
+    let r = json(&out.join("report.json"));
+    let pooled = |p: &str, h: u64| {
+        r["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|row| row["predictor"] == p && row["object"].is_null() && row["horizon"] == h)
+            .unwrap_or_else(|| panic!("no row for {p} at {h}: {table}"))["rmse_2d"]
+            .as_f64()
+            .unwrap()
+    };
+    // A steadily turning path: the polynomial forecast beats constant velocity 15 frames out.
+    assert!(pooled("poly", 15) < 0.5 * pooled("cv", 15), "{table}");
+    assert!(pooled("poly", 1) < 2.0 && pooled("cv", 1) < 2.0, "{table}");
+    assert!(out.join("plots").join("spiral_poly_id1.png").exists());
+    // An unknown predictor key is named.
+    std::fs::write(
+        &cfg,
+        r#"{"clips": [{"name": "s", "config": "spiral.json"}],
+            "predictors": [{"name": "p", "mtp": {"windw": 3}}], "horizons": [1]}"#,
+    )
+    .unwrap();
+    let err = failed(&pins(&[
+        "track",
+        "experiment",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        d.path().join("x").to_str().unwrap(),
+    ]));
+    assert!(err.contains("windw"), "{err}");
+}
