@@ -310,3 +310,42 @@ fn bad_input_fails_clearly_without_output() {
     assert!(err.contains("/no/such/data"), "{err}");
     assert!(!t.join("run").exists());
 }
+
+#[test]
+fn the_shipped_weights_recover_most_of_the_motion_of_unseen_metalens_pairs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    // Pairs the weights never saw (another seed), through the default metalens camera.
+    let cfg = GeneratorConfig {
+        count: 3,
+        seed: 777,
+        scene: SceneSpec::Chairs(ChairsConfig {
+            width: 256,
+            height: 192,
+            ..ChairsConfig::default()
+        }),
+        camera: CameraConfig::default(),
+        save_clean: false,
+    };
+    Generator::new(cfg)
+        .unwrap()
+        .run(&data, Shard::ALL, false)
+        .unwrap();
+    let report = tmp.path().join("report.json");
+    ok(&pins(&[
+        "eval",
+        "--data",
+        data.to_str().unwrap(),
+        "--iters",
+        "6",
+        "--out",
+        report.to_str().unwrap(),
+    ]));
+    let json: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
+    let (epe, zero) = (
+        json["rows"][0]["epe"].as_f64().unwrap(),
+        json["zero_flow"]["epe"].as_f64().unwrap(),
+    );
+    assert!(epe < 0.6 * zero, "shipped weights: EPE {epe} against {zero} for zero flow");
+}
