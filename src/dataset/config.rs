@@ -68,11 +68,7 @@ impl Default for GeneratorConfig {
 impl GeneratorConfig {
     /// Reads a JSON config; the error names the file and the offending key or value.
     pub fn from_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        let mut cfg: Self = crate::io::read_json(path)?;
         // Relative paths inside a config are relative to the config file, not to the caller's
         // working directory, so experiment files work from anywhere.
         let base = path.parent().unwrap_or(Path::new(""));
@@ -81,15 +77,8 @@ impl GeneratorConfig {
         {
             *p = base.join(&*p);
         }
-        if !matches!(cfg.camera.psf.as_str(), "default" | "delta")
-            && Path::new(&cfg.camera.psf).is_relative()
-        {
-            cfg.camera.psf = base.join(&cfg.camera.psf).to_string_lossy().into_owned();
-        }
-        cfg.validate().map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        cfg.camera.resolve_paths(base);
+        cfg.validate().map_err(|e| crate::io::in_config(path, e))?;
         Ok(cfg)
     }
 

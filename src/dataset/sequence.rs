@@ -27,21 +27,10 @@ pub struct SequenceConfig {
 impl SequenceConfig {
     /// Reads a JSON config; relative PSF paths are relative to the file.
     pub fn from_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        let base = path.parent().unwrap_or(Path::new(""));
-        if !matches!(cfg.camera.psf.as_str(), "default" | "delta")
-            && Path::new(&cfg.camera.psf).is_relative()
-        {
-            cfg.camera.psf = base.join(&cfg.camera.psf).to_string_lossy().into_owned();
-        }
-        cfg.validate().map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        let mut cfg: Self = io::read_json(path)?;
+        cfg.camera
+            .resolve_paths(path.parent().unwrap_or(Path::new("")));
+        cfg.validate().map_err(|e| io::in_config(path, e))?;
         Ok(cfg)
     }
 

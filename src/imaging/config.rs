@@ -39,6 +39,16 @@ impl Default for CameraConfig {
 }
 
 impl CameraConfig {
+    /// Makes a relative PSF file path relative to `base` (the folder of the config file that
+    /// named it) rather than to the caller's working directory.
+    pub fn resolve_paths(&mut self, base: &std::path::Path) {
+        if !matches!(self.psf.as_str(), "default" | "delta")
+            && std::path::Path::new(&self.psf).is_relative()
+        {
+            self.psf = base.join(&self.psf).to_string_lossy().into_owned();
+        }
+    }
+
     /// Checks every value, naming the first one out of range.
     pub fn validate(&self) -> Result<()> {
         if !self.brightness.is_finite() || self.brightness < 0.0 {

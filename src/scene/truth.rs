@@ -58,15 +58,8 @@ impl Truth {
 
     /// Reads and checks a `truth.json`.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let t: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        t.validate().map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        let t: Self = crate::io::read_json(path)?;
+        t.validate().map_err(|e| crate::io::in_config(path, e))?;
         Ok(t)
     }
 

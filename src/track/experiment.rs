@@ -93,11 +93,7 @@ fn default_noise_k() -> f64 {
 
 impl ExperimentConfig {
     pub fn from_file(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        let mut cfg: Self = crate::io::read_json(path)?;
         let base = path.parent().unwrap_or(Path::new(""));
         for c in &mut cfg.clips {
             if c.config.is_relative() {
@@ -105,10 +101,7 @@ impl ExperimentConfig {
             }
             c.clip = SequenceConfig::from_file(&c.config)?;
         }
-        cfg.validate().map_err(|e| Error::Config {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
+        cfg.validate().map_err(|e| crate::io::in_config(path, e))?;
         Ok(cfg)
     }
 

@@ -72,15 +72,8 @@ impl Default for TrainConfig {
 impl TrainConfig {
     /// Reads a JSON config, naming the file on error.
     pub fn from_file(path: &std::path::Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let cfg: Self = serde_json::from_str(&text).map_err(|e| Error::Config {
-            path: path.into(),
-            reason: e.to_string(),
-        })?;
-        cfg.validate().map_err(|e| Error::Config {
-            path: path.into(),
-            reason: e.to_string(),
-        })?;
+        let cfg: Self = crate::io::read_json(path)?;
+        cfg.validate().map_err(|e| crate::io::in_config(path, e))?;
         Ok(cfg)
     }
 
