@@ -287,14 +287,18 @@ fn experiment(a: ExperimentArgs) -> Result<()> {
             .chars()
             .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
             .collect();
+        // One plot per true object: the track that follows it (spurious tracks, which a noisy
+        // estimated flow can make by the dozen, are scored but not drawn).
         let matched = evaluate(tracks, truth)?;
         for (t, o) in tracks.objects.iter().zip(&matched.objects) {
-            let obj = o.truth_index.map(|i| &truth.objects[i]);
+            let Some(i) = o.truth_index else {
+                continue;
+            };
             plot_track(
                 &plots.join(format!("{slug}_id{}.png", t.id)),
                 t,
                 k,
-                obj,
+                Some(&truth.objects[i]),
                 (truth.width, truth.height),
                 truth.fps,
             )?;
