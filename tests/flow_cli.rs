@@ -347,5 +347,8 @@ fn the_shipped_weights_recover_most_of_the_motion_of_unseen_metalens_pairs() {
         json["rows"][0]["epe"].as_f64().unwrap(),
         json["zero_flow"]["epe"].as_f64().unwrap(),
     );
-    assert!(epe < 0.6 * zero, "shipped weights: EPE {epe} against {zero} for zero flow");
+    assert!(
+        epe < 0.6 * zero,
+        "shipped weights: EPE {epe} against {zero} for zero flow"
+    );
 }
