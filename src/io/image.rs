@@ -264,6 +264,33 @@ fn encode_pnm(image: &Image, ext: &str, depth: BitDepth, what: &str) -> Result<V
     Ok(out)
 }
 
+/// The image files of a folder of frames (PNG, JPEG, PPM/PGM, TIFF, EXR), sorted by name.
+pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && matches!(
+                    ext_lower(p).as_str(),
+                    "png" | "jpg" | "jpeg" | "ppm" | "pgm" | "tif" | "tiff" | "exr"
+                )
+        })
+        .collect();
+    v.sort();
+    if v.len() < 2 {
+        return Err(Error::invalid(
+            "frames",
+            format!(
+                "{}: need at least two images, found {}",
+                dir.display(),
+                v.len()
+            ),
+        ));
+    }
+    Ok(v)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -389,31 +416,4 @@ mod tests {
         assert!(e.contains("a.png") && e.contains("b.png"), "{e}");
         assert!(read_image_pair(&a, &a).is_ok());
     }
-}
-
-/// The image files of a folder of frames (PNG, JPEG, PPM/PGM, TIFF, EXR), sorted by name.
-pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
-    let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && matches!(
-                    ext_lower(p).as_str(),
-                    "png" | "jpg" | "jpeg" | "ppm" | "pgm" | "tif" | "tiff" | "exr"
-                )
-        })
-        .collect();
-    v.sort();
-    if v.len() < 2 {
-        return Err(Error::invalid(
-            "frames",
-            format!(
-                "{}: need at least two images, found {}",
-                dir.display(),
-                v.len()
-            ),
-        ));
-    }
-    Ok(v)
 }

@@ -99,7 +99,7 @@ pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Regio
             });
         }
     }
-    out.sort_by(|a, b| b.pixels.cmp(&a.pixels));
+    out.sort_by_key(|r| std::cmp::Reverse(r.pixels));
     Ok(out)
 }
 
