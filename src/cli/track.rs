@@ -180,11 +180,13 @@ fn run(a: RunArgs) -> Result<()> {
         }
         _ => bail!("give either --flows DIR or --frames DIR"),
     };
-    let path = out.join("tracks.json");
-    io::write_bytes_atomic(&path, serde_json::to_string_pretty(&tracks)?.as_bytes())?;
+    // Plots first: tracks.json, written last, marks a finished run.
     if !a.no_plots {
+        std::fs::create_dir_all(&out)?;
         plots(&out, &tracks, truth.as_ref(), &opts.horizons)?;
     }
+    let path = out.join("tracks.json");
+    io::write_bytes_atomic(&path, serde_json::to_string_pretty(&tracks)?.as_bytes())?;
     let ms = tracks.ms_per_frame.unwrap_or(f64::NAN);
     print!(
         "{}: {} objects over {frames} flows, tracking {ms:.2} ms per frame",

@@ -62,6 +62,9 @@ pub fn render_sequence(cfg: &SequenceConfig, dir: &Path) -> Result<Truth> {
     for sub in ["frames", "flows"] {
         std::fs::create_dir_all(dir.join(sub)).map_err(|e| Error::io(dir.join(sub), e))?;
     }
+    // The config first, so a run stopped halfway can be repeated into the same folder;
+    // truth.json last, so its presence means every frame and flow is there.
+    io::write_bytes_atomic(&dir.join("config.json"), json(cfg)?.as_bytes())?;
     if cfg.save_clean {
         std::fs::create_dir_all(dir.join("clean")).map_err(|e| Error::io(dir.join("clean"), e))?;
     }
@@ -88,7 +91,6 @@ pub fn render_sequence(cfg: &SequenceConfig, dir: &Path) -> Result<Truth> {
             Ok(())
         })?;
     io::write_bytes_atomic(&dir.join("truth.json"), json(&truth)?.as_bytes())?;
-    io::write_bytes_atomic(&dir.join("config.json"), json(cfg)?.as_bytes())?;
     Ok(truth)
 }
 

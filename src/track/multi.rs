@@ -114,9 +114,7 @@ impl Tracker {
                 continue;
             }
             for (j, d) in detections.iter().enumerate() {
-                let reach = (d.pixels as f64 / std::f64::consts::PI).sqrt();
-                let dist = (d.centroid.0 - t.predicted.0).hypot(d.centroid.1 - t.predicted.1);
-                if dist <= reach && matches.contains(&Some(j)) {
+                if covers(d, t.predicted) && matches.contains(&Some(j)) {
                     shared[j] = true;
                 }
             }
@@ -132,11 +130,10 @@ impl Tracker {
             // Inside a merged region the object is seen, only not separately: no miss.
             let in_merge = m.is_some_and(|j| shared[j])
                 || (m.is_none()
-                    && detections.iter().enumerate().any(|(j, d)| {
-                        shared[j]
-                            && (d.centroid.0 - t.predicted.0).hypot(d.centroid.1 - t.predicted.1)
-                                <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
-                    }));
+                    && detections
+                        .iter()
+                        .zip(&shared)
+                        .any(|(d, &s)| s && covers(d, t.predicted)));
             let e = t.mtp.step(frame, det, horizon)?;
             if det.is_some() {
                 t.hits += 1;
@@ -186,6 +183,12 @@ impl Tracker {
         out.sort_by_key(|t| t.id);
         Ok(out)
     }
+}
+
+/// True when `point` lies within the equivalent radius √(area/π) of region `d`.
+fn covers(d: &Region, point: (f64, f64)) -> bool {
+    (d.centroid.0 - point.0).hypot(d.centroid.1 - point.1)
+        <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
 }
 
 #[cfg(test)]
