@@ -5,6 +5,8 @@
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
 use burn::tensor::activation::{relu, sigmoid, tanh};
+use burn::tensor::module::conv2d;
+use burn::tensor::ops::ConvOptions;
 
 use super::blocks::conv;
 use super::config::MmsConfig;
@@ -43,6 +45,12 @@ impl MotionEncoder {
 
 /// ConvGRU, Eqs. S9–S12: z = σ(Conv[h, x]), r = σ(Conv[h, x]), h̃ = tanh(Conv[r⊙h, x]),
 /// h' = (1 − z)⊙h + z⊙h̃.
+///
+/// A convolution of a concatenation is the sum of convolutions of its parts, Conv[h, x] =
+/// Conv_h(h) + Conv_x(x), so the forward pass splits every kernel by input channel: x is
+/// convolved once for all three gates and h once for z and r. The weights and the result are
+/// those of the three concatenated convolutions; the CPU backend unfolds each input (im2col)
+/// once instead of three times.
 #[derive(Module, Debug)]
 pub struct ConvGru {
     convz: Conv2d,
@@ -62,10 +70,34 @@ impl ConvGru {
     /// # Shapes
     /// `h`: `[B, Ch, H, W]`, `x`: `[B, Cx, H, W]` → `[B, Ch, H, W]`
     pub fn forward(&self, h: Tensor<4>, x: Tensor<4>) -> Tensor<4> {
-        let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
-        let z = sigmoid(self.convz.forward(hx.clone())); // Eq. S9
-        let r = sigmoid(self.convr.forward(hx)); // Eq. S10
-        let q = tanh(self.convq.forward(Tensor::cat(vec![r * h.clone(), x], 1))); // Eq. S11
+        let ch = h.dims()[1];
+        let cx = x.dims()[1];
+        let same = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
+        // Kernels [Ch, Ch + Cx, 3, 3] split into their h part [Ch, Ch, 3, 3] and x part.
+        let parts = |c: &Conv2d| {
+            let w = c.weight.val();
+            (w.clone().narrow(1, 0, ch), w.narrow(1, ch, cx))
+        };
+        let ((zh, zx), (rh, rx), (qh, qx)) =
+            (parts(&self.convz), parts(&self.convr), parts(&self.convq));
+        let biases: Vec<Tensor<1>> = [&self.convz, &self.convr, &self.convq]
+            .iter()
+            .map(|c| match &c.bias {
+                Some(b) => b.val(),
+                None => Tensor::zeros([ch], &x.device()),
+            })
+            .collect();
+        let gx = conv2d(
+            x,
+            Tensor::cat(vec![zx, rx, qx], 0),
+            Some(Tensor::cat(biases, 0)),
+            same.clone(),
+        ); // [B, 3Ch, H, W]
+        let gh = conv2d(h.clone(), Tensor::cat(vec![zh, rh], 0), None, same.clone()); // [B, 2Ch, H, W]
+        let zr = sigmoid(gx.clone().narrow(1, 0, 2 * ch) + gh); // Eqs. S9, S10
+        let z = zr.clone().narrow(1, 0, ch);
+        let r = zr.narrow(1, ch, ch);
+        let q = tanh(gx.narrow(1, 2 * ch, ch) + conv2d(r * h.clone(), qh, None, same)); // Eq. S11
         (z.clone().neg() + 1.0) * h + z * q // Eq. S12
     }
 }
@@ -112,13 +144,73 @@ impl UpdateBlock {
         let hidden = self
             .gru
             .forward(hidden, Tensor::cat(vec![context, motion], 1));
-        let delta = self.flow2.forward(relu(self.flow1.forward(hidden.clone())));
+        if !with_mask {
+            let delta = self.flow2.forward(relu(self.flow1.forward(hidden.clone())));
+            return (hidden, delta, None);
+        }
+        // Both heads open with a 3×3 convolution of the hidden state: one convolution with the
+        // two kernels stacked, split after.
+        let head = self.flow1.weight.dims()[0];
+        let bias = |c: &Conv2d| match &c.bias {
+            Some(b) => b.val(),
+            None => Tensor::zeros([head], &hidden.device()),
+        };
+        let both = relu(conv2d(
+            hidden.clone(),
+            Tensor::cat(vec![self.flow1.weight.val(), self.mask1.weight.val()], 0),
+            Some(Tensor::cat(vec![bias(&self.flow1), bias(&self.mask1)], 0)),
+            ConvOptions::new([1, 1], [1, 1], [1, 1], 1),
+        )); // [B, 2·head, H, W]
+        let delta = self.flow2.forward(both.clone().narrow(1, 0, head));
         // RAFT scales the mask logits by 1/4 to balance their gradients against the flow's.
-        let mask = with_mask.then(|| {
+        let mask = Some(
             self.mask2
-                .forward(relu(self.mask1.forward(hidden.clone())))
-                .mul_scalar(0.25)
-        });
+                .forward(both.narrow(1, head, head))
+                .mul_scalar(0.25),
+        );
         (hidden, delta, mask)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::Distribution;
+
+    /// The stacked-kernel heads give what the two heads give one by one.
+    #[test]
+    fn stacked_heads_match_separate_heads() {
+        let dev = Device::flex();
+        let cfg = MmsConfig::mms_small();
+        let block = UpdateBlock::new(&cfg, &dev);
+        let hidden = Tensor::<4>::random([1, cfg.hidden_dim, 5, 6], Distribution::Normal(0.0, 1.0), &dev);
+        let context = Tensor::<4>::zeros([1, cfg.context_dim, 5, 6], &dev);
+        let corr = Tensor::<4>::zeros([1, cfg.corr_channels(), 5, 6], &dev);
+        let flow = Tensor::<4>::zeros([1, 2, 5, 6], &dev);
+        // Run the heads on the hidden state the block itself produces.
+        let (h2, d2, m2) = block.forward(hidden, context, corr, flow, true);
+        let d_ref = block.flow2.forward(relu(block.flow1.forward(h2.clone())));
+        let m_ref = block.mask2.forward(relu(block.mask1.forward(h2))).mul_scalar(0.25);
+        let m2 = m2.expect("mask requested");
+        let dd: f32 = (d2 - d_ref).abs().max().into_scalar();
+        let dm: f32 = (m2 - m_ref).abs().max().into_scalar();
+        assert!(dd < 1e-5 && dm < 1e-5, "delta {dd}, mask {dm}");
+    }
+
+    /// The split-kernel forward pass equals Eqs. S9–S12 written with concatenated inputs.
+    #[test]
+    fn gru_split_kernels_match_the_concatenated_equations() {
+        let dev = Device::flex();
+        let gru = ConvGru::new(8, 5, &dev);
+        let h = Tensor::<4>::random([2, 8, 6, 7], Distribution::Normal(0.0, 1.0), &dev);
+        let x = Tensor::<4>::random([2, 5, 6, 7], Distribution::Normal(0.0, 1.0), &dev);
+        let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
+        let z = sigmoid(gru.convz.forward(hx.clone()));
+        let r = sigmoid(gru.convr.forward(hx));
+        let q = tanh(gru.convq.forward(Tensor::cat(vec![r * h.clone(), x.clone()], 1)));
+        let want = (z.clone().neg() + 1.0) * h.clone() + z * q;
+        let got = gru.forward(h, x);
+        let diff: f32 = (got - want).abs().max().into_scalar();
+        assert!(diff < 1e-5, "max difference {diff}");
     }
 }
