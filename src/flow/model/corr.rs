@@ -1,15 +1,28 @@
 //! All-pairs correlation (Note S9): the dot products of every 1/8-resolution feature of frame 1
 //! with every one of frame 2, scaled by 1/√C, pooled into a pyramid, and looked up in a
 //! (2r+1)² window around x + F(x) at every level by bilinear interpolation.
+//!
+//! Under autodiff the lookup is built from tensor operations so that gradients reach the
+//! features. Without autodiff (inference) the pyramid is copied to host memory once and every
+//! lookup is a direct loop over the window: the same numbers, without the dozen intermediate
+//! tensors per level that the tensor form allocates.
 
 use burn::prelude::*;
 use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
+use rayon::prelude::*;
+
+/// Where the pyramid levels live.
+enum Levels {
+    /// Level l as a tensor `[B·H·W, H/2^l, W/2^l]`, differentiable.
+    Graph(Vec<Tensor<3>>),
+    /// Level l as row-major host memory of the same shape.
+    Host(Vec<Vec<f32>>),
+}
 
 /// The correlation pyramid of one image pair.
 pub struct CorrPyramid {
-    /// Level l: `[B·H·W, 1, H/2^l, W/2^l]`.
-    levels: Vec<Tensor<3>>,
+    levels: Levels,
     sizes: Vec<(usize, usize)>,
     batch: usize,
     height: usize,
@@ -21,6 +34,23 @@ impl CorrPyramid {
     /// # Shapes
     /// `f1`, `f2`: `[B, C, H, W]` → levels `[B·H·W, h_l, w_l]`
     pub fn new(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize) -> Self {
+        let host = !f1.is_autodiff() && !f2.is_autodiff();
+        let mut pyramid = Self::graph(f1, f2, num_levels, radius);
+        if host && let Levels::Graph(levels) = &pyramid.levels {
+            // A level whose data cannot be read as f32 keeps the tensor path.
+            let copied: Option<Vec<Vec<f32>>> = levels
+                .iter()
+                .map(|l| l.clone().into_data().try_into_vec::<f32>().ok())
+                .collect();
+            if let Some(copied) = copied {
+                pyramid.levels = Levels::Host(copied);
+            }
+        }
+        pyramid
+    }
+
+    /// The pyramid as tensors, differentiable, whatever the device.
+    pub fn graph(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize) -> Self {
         let [b, c, h, w] = f1.dims();
         let corr = f1
             .reshape([b, c, h * w])
@@ -43,7 +73,7 @@ impl CorrPyramid {
             }
         }
         Self {
-            levels,
+            levels: Levels::Graph(levels),
             sizes,
             batch: b,
             height: h,
@@ -58,17 +88,117 @@ impl CorrPyramid {
     /// `coords`: `[B, 2, H, W]` → `[B, levels·(2r+1)², H, W]`
     pub fn lookup(&self, coords: Tensor<4>) -> Tensor<4> {
         let (b, h, w, r) = (self.batch, self.height, self.width, self.radius);
+        let levels = match &self.levels {
+            Levels::Graph(levels) => levels,
+            Levels::Host(levels) => {
+                let device = coords.device();
+                if let Ok(c) = coords.clone().into_data().try_into_vec::<f32>() {
+                    let k = 2 * r + 1;
+                    let channels = levels.len() * k * k;
+                    let out = host_lookup(levels, &self.sizes, &c, [b, h, w], r);
+                    return Tensor::from_data(TensorData::new(out, [b, channels, h, w]), &device);
+                }
+                // Coordinates that cannot be read as f32: rebuild the tensor path.
+                return self.lookup_graph(
+                    &levels
+                        .iter()
+                        .zip(&self.sizes)
+                        .map(|(l, &(hl, wl))| {
+                            Tensor::from_data(
+                                TensorData::new(l.clone(), [b * h * w, hl, wl]),
+                                &device,
+                            )
+                        })
+                        .collect::<Vec<_>>(),
+                    coords,
+                );
+            }
+        };
+        self.lookup_graph(levels, coords)
+    }
+
+    fn lookup_graph(&self, levels: &[Tensor<3>], coords: Tensor<4>) -> Tensor<4> {
+        let (b, h, w, r) = (self.batch, self.height, self.width, self.radius);
         let n = b * h * w;
         let c = coords.permute([0, 2, 3, 1]).reshape([n, 2]); // [N, 2] = (x, y)
         let k = 2 * r + 1;
-        let mut out = Vec::with_capacity(self.levels.len());
-        for (l, (level, &(hl, wl))) in self.levels.iter().zip(&self.sizes).enumerate() {
+        let mut out = Vec::with_capacity(levels.len());
+        for (l, (level, &(hl, wl))) in levels.iter().zip(&self.sizes).enumerate() {
             let scaled = c.clone().div_scalar((1u32 << l) as f32);
             let window = window_lookup(level.clone(), scaled, hl, wl, r); // [N, k, k]
             out.push(window.reshape([b, h, w, k * k]));
         }
         Tensor::cat(out, 3).permute([0, 3, 1, 2]) // [B, L·k², H, W]
     }
+}
+
+/// The lookup of [`CorrPyramid::lookup`] on host memory: for every pixel and level, the
+/// (2r+1)² window around its scaled position, bilinear with zero padding (align_corners = true),
+/// written channel-major.
+///
+/// # Shapes
+/// `levels[l]`: `[B·H·W, h_l, w_l]`, `coords`: `[B, 2, H, W]` → `[B, L·(2r+1)², H, W]`
+fn host_lookup(
+    levels: &[Vec<f32>],
+    sizes: &[(usize, usize)],
+    coords: &[f32],
+    [b, h, w]: [usize; 3],
+    r: usize,
+) -> Vec<f32> {
+    let hw = h * w;
+    let k = 2 * r + 1;
+    let lk = levels.len() * k * k;
+    // Pixel-major first ([B·H·W, L·k²]: each pixel's windows are one contiguous run), then
+    // transposed per image to channel-major.
+    let mut windows = vec![0f32; b * hw * lk];
+    windows.par_chunks_mut(lk).enumerate().for_each(|(n, dst)| {
+        let (bi, p) = (n / hw, n % hw);
+        let x = coords[(2 * bi) * hw + p];
+        let y = coords[(2 * bi + 1) * hw + p];
+        for (l, (level, &(hl, wl))) in levels.iter().zip(sizes).enumerate() {
+            let scale = 1.0 / (1u32 << l) as f32;
+            let (xs, ys) = (x * scale, y * scale);
+            let (xf, yf) = (xs.floor(), ys.floor());
+            let (fx, fy) = (xs - xf, ys - yf);
+            // Saturating casts, kept far from overflow when offsets are added.
+            let bound = 1i64 << 40;
+            let (x0, y0) = (
+                (xf as i64).clamp(-bound, bound) - r as i64,
+                (yf as i64).clamp(-bound, bound) - r as i64,
+            );
+            let map = &level[n * hl * wl..(n + 1) * hl * wl];
+            let at = |yy: i64, xx: i64| -> f32 {
+                if yy >= 0 && xx >= 0 && (yy as usize) < hl && (xx as usize) < wl {
+                    map[yy as usize * wl + xx as usize]
+                } else {
+                    0.0
+                }
+            };
+            let (gx, gy) = (1.0 - fx, 1.0 - fy);
+            let out = &mut dst[l * k * k..(l + 1) * k * k];
+            for i in 0..k {
+                let yy = y0 + i as i64;
+                for j in 0..k {
+                    let xx = x0 + j as i64;
+                    out[i * k + j] = at(yy, xx) * (gy * gx)
+                        + at(yy, xx + 1) * (gy * fx)
+                        + at(yy + 1, xx) * (fy * gx)
+                        + at(yy + 1, xx + 1) * (fy * fx);
+                }
+            }
+        }
+    });
+    let mut out = vec![0f32; b * lk * hw];
+    for bi in 0..b {
+        let src = &windows[bi * hw * lk..(bi + 1) * hw * lk];
+        let dst = &mut out[bi * lk * hw..(bi + 1) * lk * hw];
+        for (p, row) in src.chunks_exact(lk).enumerate() {
+            for (ch, v) in row.iter().enumerate() {
+                dst[ch * hw + p] = *v;
+            }
+        }
+    }
+    out
 }
 
 /// Bilinear lookup of a (2r+1)² window with zero padding outside the level: one gather of the
@@ -120,6 +250,27 @@ fn window_lookup(level: Tensor<3>, c: Tensor<2>, hl: usize, wl: usize, r: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+    use burn::tensor::Distribution;
+
+    /// The host lookup (inference) gives the numbers of the tensor lookup (training), for
+    /// positions inside, across and far outside every level.
+    #[test]
+    fn host_lookup_matches_the_tensor_lookup() {
+        let dev = Device::flex();
+        let (b, c, h, w) = (2, 5, 6, 9);
+        let f1 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let f2 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let host = CorrPyramid::new(f1.clone(), f2.clone(), 3, 2);
+        assert!(matches!(host.levels, Levels::Host(_)));
+        let graph = CorrPyramid::graph(f1, f2, 3, 2);
+        // Positions from −12 to +20 px: inside, at the border and outside all levels.
+        let coords = Tensor::<4>::random([b, 2, h, w], Distribution::Uniform(-12.0, 20.0), &dev);
+        let a = host.lookup(coords.clone());
+        let g = graph.lookup(coords);
+        assert_eq!(a.dims(), [b, 3 * 25, h, w]);
+        let diff: f32 = (a - g).abs().max().into_scalar();
+        assert!(diff < 1e-5, "max difference {diff}");
+    }
 
     #[test]
     fn lookup_at_integer_coords_reads_the_correlation() {

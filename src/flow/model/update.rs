@@ -183,14 +183,21 @@ mod tests {
         let dev = Device::flex();
         let cfg = MmsConfig::mms_small();
         let block = UpdateBlock::new(&cfg, &dev);
-        let hidden = Tensor::<4>::random([1, cfg.hidden_dim, 5, 6], Distribution::Normal(0.0, 1.0), &dev);
+        let hidden = Tensor::<4>::random(
+            [1, cfg.hidden_dim, 5, 6],
+            Distribution::Normal(0.0, 1.0),
+            &dev,
+        );
         let context = Tensor::<4>::zeros([1, cfg.context_dim, 5, 6], &dev);
         let corr = Tensor::<4>::zeros([1, cfg.corr_channels(), 5, 6], &dev);
         let flow = Tensor::<4>::zeros([1, 2, 5, 6], &dev);
         // Run the heads on the hidden state the block itself produces.
         let (h2, d2, m2) = block.forward(hidden, context, corr, flow, true);
         let d_ref = block.flow2.forward(relu(block.flow1.forward(h2.clone())));
-        let m_ref = block.mask2.forward(relu(block.mask1.forward(h2))).mul_scalar(0.25);
+        let m_ref = block
+            .mask2
+            .forward(relu(block.mask1.forward(h2)))
+            .mul_scalar(0.25);
         let m2 = m2.expect("mask requested");
         let dd: f32 = (d2 - d_ref).abs().max().into_scalar();
         let dm: f32 = (m2 - m_ref).abs().max().into_scalar();
@@ -207,7 +214,10 @@ mod tests {
         let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
         let z = sigmoid(gru.convz.forward(hx.clone()));
         let r = sigmoid(gru.convr.forward(hx));
-        let q = tanh(gru.convq.forward(Tensor::cat(vec![r * h.clone(), x.clone()], 1)));
+        let q = tanh(
+            gru.convq
+                .forward(Tensor::cat(vec![r * h.clone(), x.clone()], 1)),
+        );
         let want = (z.clone().neg() + 1.0) * h.clone() + z * q;
         let got = gru.forward(h, x);
         let diff: f32 = (got - want).abs().max().into_scalar();
