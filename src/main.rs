@@ -68,7 +68,9 @@ fn main() {
     // per 368×496 inference). Keeping freed memory committed (−1: never purge) removes them;
     // the peak memory is unchanged.
     // SAFETY: sets a process-wide mimalloc option before any thread is started.
-    unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
+    if std::env::var_os("MIMALLOC_PURGE_DELAY").is_none() {
+        unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Generate(a) => generate(a),

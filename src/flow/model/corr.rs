@@ -12,17 +12,17 @@ use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
 use rayon::prelude::*;
 
-/// Where the pyramid levels live.
-enum Levels {
-    /// Level l as a tensor `[B·H·W, H/2^l, W/2^l]`, differentiable.
-    Graph(Vec<Tensor<3>>),
-    /// Level l as row-major host memory of the same shape.
-    Host(Vec<Vec<f32>>),
+/// One pyramid level `[B·H·W, H/2^l, W/2^l]`.
+enum Level {
+    /// A tensor, differentiable.
+    Graph(Tensor<3>),
+    /// Row-major host memory (f32 when read back through [`TensorData::as_slice`]).
+    Host(TensorData),
 }
 
 /// The correlation pyramid of one image pair.
 pub struct CorrPyramid {
-    levels: Levels,
+    levels: Vec<Level>,
     sizes: Vec<(usize, usize)>,
     batch: usize,
     height: usize,
@@ -35,22 +35,17 @@ impl CorrPyramid {
     /// `f1`, `f2`: `[B, C, H, W]` → levels `[B·H·W, h_l, w_l]`
     pub fn new(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize) -> Self {
         let host = !f1.is_autodiff() && !f2.is_autodiff();
-        let mut pyramid = Self::graph(f1, f2, num_levels, radius);
-        if host && let Levels::Graph(levels) = &pyramid.levels {
-            // A level whose data cannot be read as f32 keeps the tensor path.
-            let copied: Option<Vec<Vec<f32>>> = levels
-                .iter()
-                .map(|l| l.clone().into_data().try_into_vec::<f32>().ok())
-                .collect();
-            if let Some(copied) = copied {
-                pyramid.levels = Levels::Host(copied);
-            }
-        }
-        pyramid
+        Self::build(f1, f2, num_levels, radius, host)
     }
 
     /// The pyramid as tensors, differentiable, whatever the device.
     pub fn graph(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize) -> Self {
+        Self::build(f1, f2, num_levels, radius, false)
+    }
+
+    /// Builds the levels; with `host`, each level moves to host memory as soon as the next one
+    /// is pooled from it, so no level is ever held twice.
+    fn build(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize, host: bool) -> Self {
         let [b, c, h, w] = f1.dims();
         let corr = f1
             .reshape([b, c, h * w])
@@ -60,20 +55,29 @@ impl CorrPyramid {
             .reshape([b * h * w, 1, h, w]);
         let mut levels = Vec::with_capacity(num_levels);
         let mut sizes = Vec::with_capacity(num_levels);
-        let mut cur = corr;
+        let mut cur = Some(corr);
         for l in 0..num_levels {
-            let [n, _, hl, wl] = cur.dims();
+            let Some(level) = cur.take() else { break };
+            let [n, _, hl, wl] = level.dims();
             sizes.push((hl, wl));
-            levels.push(cur.clone().reshape([n, hl, wl]));
             if l + 1 < num_levels {
                 // A level already 1 cell wide cannot be halved; keep it (the coordinates still
                 // scale, so the lookup then sees mostly zero padding, as RAFT's does).
                 let k = [2.min(hl), 2.min(wl)];
-                cur = avg_pool2d(cur, AvgPoolOptions::new(k).with_stride(k));
+                cur = Some(avg_pool2d(
+                    level.clone(),
+                    AvgPoolOptions::new(k).with_stride(k),
+                ));
             }
+            let level = level.reshape([n, hl, wl]);
+            levels.push(if host {
+                Level::Host(level.into_data())
+            } else {
+                Level::Graph(level)
+            });
         }
         Self {
-            levels: Levels::Graph(levels),
+            levels,
             sizes,
             batch: b,
             height: h,
@@ -88,33 +92,32 @@ impl CorrPyramid {
     /// `coords`: `[B, 2, H, W]` → `[B, levels·(2r+1)², H, W]`
     pub fn lookup(&self, coords: Tensor<4>) -> Tensor<4> {
         let (b, h, w, r) = (self.batch, self.height, self.width, self.radius);
-        let levels = match &self.levels {
-            Levels::Graph(levels) => levels,
-            Levels::Host(levels) => {
-                let device = coords.device();
-                if let Ok(c) = coords.clone().into_data().try_into_vec::<f32>() {
-                    let k = 2 * r + 1;
-                    let channels = levels.len() * k * k;
-                    let out = host_lookup(levels, &self.sizes, &c, [b, h, w], r);
-                    return Tensor::from_data(TensorData::new(out, [b, channels, h, w]), &device);
-                }
-                // Coordinates that cannot be read as f32: rebuild the tensor path.
-                return self.lookup_graph(
-                    &levels
-                        .iter()
-                        .zip(&self.sizes)
-                        .map(|(l, &(hl, wl))| {
-                            Tensor::from_data(
-                                TensorData::new(l.clone(), [b * h * w, hl, wl]),
-                                &device,
-                            )
-                        })
-                        .collect::<Vec<_>>(),
-                    coords,
-                );
-            }
-        };
-        self.lookup_graph(levels, coords)
+        let device = coords.device();
+        let host: Option<Vec<&[f32]>> = self
+            .levels
+            .iter()
+            .map(|l| match l {
+                Level::Host(d) => d.as_slice::<f32>().ok(),
+                Level::Graph(_) => None,
+            })
+            .collect();
+        if let Some(host) = host
+            && let Ok(c) = coords.clone().into_data().try_into_vec::<f32>()
+        {
+            let k = 2 * r + 1;
+            let out = host_lookup(&host, &self.sizes, &c, [b, h, w], r);
+            return Tensor::from_data(TensorData::new(out, [b, host.len() * k * k, h, w]), &device);
+        }
+        let levels: Vec<Tensor<3>> = self
+            .levels
+            .iter()
+            .map(|l| match l {
+                Level::Graph(t) => t.clone(),
+                // Host data that cannot be read as f32 goes back to the tensor path.
+                Level::Host(d) => Tensor::from_data(d.clone(), &device),
+            })
+            .collect();
+        self.lookup_graph(&levels, coords)
     }
 
     fn lookup_graph(&self, levels: &[Tensor<3>], coords: Tensor<4>) -> Tensor<4> {
@@ -139,7 +142,7 @@ impl CorrPyramid {
 /// # Shapes
 /// `levels[l]`: `[B·H·W, h_l, w_l]`, `coords`: `[B, 2, H, W]` → `[B, L·(2r+1)², H, W]`
 fn host_lookup(
-    levels: &[Vec<f32>],
+    levels: &[&[f32]],
     sizes: &[(usize, usize)],
     coords: &[f32],
     [b, h, w]: [usize; 3],
@@ -261,7 +264,7 @@ mod tests {
         let f1 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
         let f2 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
         let host = CorrPyramid::new(f1.clone(), f2.clone(), 3, 2);
-        assert!(matches!(host.levels, Levels::Host(_)));
+        assert!(host.levels.iter().all(|l| matches!(l, Level::Host(_))));
         let graph = CorrPyramid::graph(f1, f2, 3, 2);
         // Positions from −12 to +20 px: inside, at the border and outside all levels.
         let coords = Tensor::<4>::random([b, 2, h, w], Distribution::Uniform(-12.0, 20.0), &dev);
