@@ -3,7 +3,7 @@
 //! (2r+1)² window around x + F(x) at every level by bilinear interpolation.
 //!
 //! Under autodiff the lookup is built from tensor operations so that gradients reach the
-//! features. Without autodiff (inference) the pyramid is copied to host memory once and every
+//! features. Without autodiff (inference) on the CPU the pyramid moves to host memory and every
 //! lookup is a direct loop over the window: the same numbers, without the dozen intermediate
 //! tensors per level that the tensor form allocates.
 
@@ -34,7 +34,8 @@ impl CorrPyramid {
     /// # Shapes
     /// `f1`, `f2`: `[B, C, H, W]` → levels `[B·H·W, h_l, w_l]`
     pub fn new(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize) -> Self {
-        let host = !f1.is_autodiff() && !f2.is_autodiff();
+        // The host loop only pays on the CPU backend; a GPU keeps its pyramid on the device.
+        let host = !f1.is_autodiff() && !f2.is_autodiff() && f1.device() == Device::flex();
         Self::build(f1, f2, num_levels, radius, host)
     }
 
