@@ -65,8 +65,8 @@ const MI_OPTION_PURGE_DELAY: libmimalloc_sys::mi_option_t = 15;
 fn main() {
     // The flow network frees and reallocates tensors of the same sizes every iteration; each
     // block handed back to the kernel comes back as fresh zeroed pages (about 8000 page faults
-    // per 368×496 inference). Keeping freed memory committed (−1: never purge) removes them;
-    // the peak memory is unchanged.
+    // per 368×496 inference). Keeping freed memory committed (−1: never purge) removes them at
+    // the cost of a higher peak (mms-small at 368×496: 264 MB instead of 110 MB).
     // SAFETY: sets a process-wide mimalloc option before any thread is started.
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_none() {
         unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };

@@ -26,6 +26,21 @@ pub fn conv(
         .init(device)
 }
 
+/// The bias of `c`, or zeros when it has none: for convolutions whose kernels are stacked into
+/// one call of `burn::tensor::module::conv2d`.
+///
+/// # Shapes
+/// → `[Cout]`
+pub fn bias_or_zeros(c: &Conv2d) -> Tensor<1> {
+    match &c.bias {
+        Some(b) => b.val(),
+        None => {
+            let w = c.weight.val();
+            Tensor::zeros([w.dims()[0]], &w.device())
+        }
+    }
+}
+
 /// A normalisation layer chosen by [`NormKind`].
 #[derive(Module, Debug)]
 pub struct Norm {

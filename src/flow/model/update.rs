@@ -8,7 +8,7 @@ use burn::tensor::activation::{relu, sigmoid, tanh};
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 
-use super::blocks::conv;
+use super::blocks::{bias_or_zeros, conv};
 use super::config::MmsConfig;
 
 /// Encodes (correlation, flow) into motion features, keeping the flow itself as two channels.
@@ -80,13 +80,9 @@ impl ConvGru {
         };
         let ((zh, zx), (rh, rx), (qh, qx)) =
             (parts(&self.convz), parts(&self.convr), parts(&self.convq));
-        let biases: Vec<Tensor<1>> = [&self.convz, &self.convr, &self.convq]
-            .iter()
-            .map(|c| match &c.bias {
-                Some(b) => b.val(),
-                None => Tensor::zeros([ch], &x.device()),
-            })
-            .collect();
+        let biases = [&self.convz, &self.convr, &self.convq]
+            .map(bias_or_zeros)
+            .to_vec();
         let gx = conv2d(
             x,
             Tensor::cat(vec![zx, rx, qx], 0),
@@ -151,14 +147,13 @@ impl UpdateBlock {
         // Both heads open with a 3×3 convolution of the hidden state: one convolution with the
         // two kernels stacked, split after.
         let head = self.flow1.weight.dims()[0];
-        let bias = |c: &Conv2d| match &c.bias {
-            Some(b) => b.val(),
-            None => Tensor::zeros([head], &hidden.device()),
-        };
         let both = relu(conv2d(
             hidden.clone(),
             Tensor::cat(vec![self.flow1.weight.val(), self.mask1.weight.val()], 0),
-            Some(Tensor::cat(vec![bias(&self.flow1), bias(&self.mask1)], 0)),
+            Some(Tensor::cat(
+                vec![bias_or_zeros(&self.flow1), bias_or_zeros(&self.mask1)],
+                0,
+            )),
             ConvOptions::new([1, 1], [1, 1], [1, 1], 1),
         )); // [B, 2·head, H, W]
         let delta = self.flow2.forward(both.clone().narrow(1, 0, head));
