@@ -7,6 +7,7 @@ use burn::prelude::*;
 use burn::tensor::activation::relu;
 
 use super::config::NormKind;
+use super::host_conv::conv_forward;
 
 /// A k×k convolution with `stride` and `dilation`, padded so that stride 1 keeps the size.
 /// Padding is explicit: burn's `Same` ignores dilation.
@@ -106,10 +107,10 @@ impl ResidualBlock {
     /// # Shapes
     /// `[B, Cin, H, W]` → `[B, Cout, H/stride, W/stride]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu(self.norm1.forward(self.conv1.forward(x.clone())));
-        let y = relu(self.norm2.forward(self.conv2.forward(y)));
+        let y = relu(self.norm1.forward(conv_forward(&self.conv1, x.clone())));
+        let y = relu(self.norm2.forward(conv_forward(&self.conv2, y)));
         let skip = match (&self.skip, &self.skip_norm) {
-            (Some(c), Some(n)) => n.forward(c.forward(x)),
+            (Some(c), Some(n)) => n.forward(conv_forward(c, x)),
             _ => x,
         };
         relu(skip + y)

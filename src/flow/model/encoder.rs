@@ -10,6 +10,7 @@ use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
 
 use super::blocks::{Norm, ResidualBlock, conv};
 use super::config::NormKind;
+use super::host_conv::conv_forward;
 
 /// Bilinear resize to `[h, w]` with PyTorch's `align_corners = false` (burn's default is true).
 pub fn resize(x: Tensor<4>, h: usize, w: usize) -> Tensor<4> {
@@ -47,7 +48,7 @@ impl PyramidPooling {
         }
         relu(
             self.norm
-                .forward(self.fuse.forward(Tensor::cat(branches, 1))),
+                .forward(conv_forward(&self.fuse, Tensor::cat(branches, 1))),
         ) // [B, 4C, H, W] → [B, C, H, W]
     }
 }
@@ -88,14 +89,14 @@ impl Daspp {
     /// `[B, C, H, W]` → `[B, Cout, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let [b, c, h, w] = x.dims();
-        let mut branches = vec![relu(self.point.forward(x.clone()))];
+        let mut branches = vec![relu(conv_forward(&self.point, x.clone()))];
         for a in &self.atrous {
-            branches.push(relu(a.forward(x.clone())));
+            branches.push(relu(conv_forward(a, x.clone())));
         }
-        let g = relu(self.global.forward(x.mean_dim(2).mean_dim(3))); // [B, C, 1, 1]
+        let g = relu(conv_forward(&self.global, x.mean_dim(2).mean_dim(3))); // [B, C, 1, 1]
         branches.push(g.expand([b, c, h, w]));
         self.norm
-            .forward(self.fuse.forward(Tensor::cat(branches, 1)))
+            .forward(conv_forward(&self.fuse, Tensor::cat(branches, 1)))
     }
 }
 
@@ -143,7 +144,7 @@ impl Dsmsce {
     /// # Shapes
     /// `[B, 3, H, W]` (H, W multiples of 8) → `[B, out, H/8, W/8]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let mut x = relu(self.stem_norm.forward(self.stem.forward(x))); // [B, d1, H/2, W/2]
+        let mut x = relu(self.stem_norm.forward(conv_forward(&self.stem, x))); // [B, d1, H/2, W/2]
         for b in self.stage1.iter().chain(&self.stage2).chain(&self.stage3) {
             x = b.forward(x); // → [B, d3, H/8, W/8]
         }

@@ -4,6 +4,7 @@ pub mod blocks;
 pub mod config;
 pub mod corr;
 pub mod encoder;
+pub mod host_conv;
 pub mod mms;
 pub mod padder;
 pub mod update;

@@ -5,11 +5,11 @@
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
 use burn::tensor::activation::{relu, sigmoid, tanh};
-use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 
 use super::blocks::{bias_or_zeros, conv};
 use super::config::MmsConfig;
+use super::host_conv::{conv2d_forward, conv_forward};
 
 /// Encodes (correlation, flow) into motion features, keeping the flow itself as two channels.
 #[derive(Module, Debug)]
@@ -36,9 +36,9 @@ impl MotionEncoder {
     /// # Shapes
     /// `corr`: `[B, L·k², H, W]`, `flow`: `[B, 2, H, W]` → `[B, motion_dims[2], H, W]`
     pub fn forward(&self, corr: Tensor<4>, flow: Tensor<4>) -> Tensor<4> {
-        let c = relu(self.corr2.forward(relu(self.corr1.forward(corr))));
-        let f = relu(self.flow2.forward(relu(self.flow1.forward(flow.clone()))));
-        let m = relu(self.out.forward(Tensor::cat(vec![c, f], 1)));
+        let c = relu(conv_forward(&self.corr2, relu(conv_forward(&self.corr1, corr))));
+        let f = relu(conv_forward(&self.flow2, relu(conv_forward(&self.flow1, flow.clone()))));
+        let m = relu(conv_forward(&self.out, Tensor::cat(vec![c, f], 1)));
         Tensor::cat(vec![m, flow], 1)
     }
 }
@@ -83,17 +83,17 @@ impl ConvGru {
         let biases = [&self.convz, &self.convr, &self.convq]
             .map(bias_or_zeros)
             .to_vec();
-        let gx = conv2d(
+        let gx = conv2d_forward(
             x,
             Tensor::cat(vec![zx, rx, qx], 0),
             Some(Tensor::cat(biases, 0)),
             same.clone(),
         ); // [B, 3Ch, H, W]
-        let gh = conv2d(h.clone(), Tensor::cat(vec![zh, rh], 0), None, same.clone()); // [B, 2Ch, H, W]
+        let gh = conv2d_forward(h.clone(), Tensor::cat(vec![zh, rh], 0), None, same.clone()); // [B, 2Ch, H, W]
         let zr = sigmoid(gx.clone().narrow(1, 0, 2 * ch) + gh); // Eqs. S9, S10
         let z = zr.clone().narrow(1, 0, ch);
         let r = zr.narrow(1, ch, ch);
-        let q = tanh(gx.narrow(1, 2 * ch, ch) + conv2d(r * h.clone(), qh, None, same)); // Eq. S11
+        let q = tanh(gx.narrow(1, 2 * ch, ch) + conv2d_forward(r * h.clone(), qh, None, same)); // Eq. S11
         (z.clone().neg() + 1.0) * h + z * q // Eq. S12
     }
 }
@@ -141,13 +141,13 @@ impl UpdateBlock {
             .gru
             .forward(hidden, Tensor::cat(vec![context, motion], 1));
         if !with_mask {
-            let delta = self.flow2.forward(relu(self.flow1.forward(hidden.clone())));
+            let delta = conv_forward(&self.flow2, relu(conv_forward(&self.flow1, hidden.clone())));
             return (hidden, delta, None);
         }
         // Both heads open with a 3×3 convolution of the hidden state: one convolution with the
         // two kernels stacked, split after.
         let head = self.flow1.weight.dims()[0];
-        let both = relu(conv2d(
+        let both = relu(conv2d_forward(
             hidden.clone(),
             Tensor::cat(vec![self.flow1.weight.val(), self.mask1.weight.val()], 0),
             Some(Tensor::cat(
@@ -156,12 +156,10 @@ impl UpdateBlock {
             )),
             ConvOptions::new([1, 1], [1, 1], [1, 1], 1),
         )); // [B, 2·head, H, W]
-        let delta = self.flow2.forward(both.clone().narrow(1, 0, head));
+        let delta = conv_forward(&self.flow2, both.clone().narrow(1, 0, head));
         // RAFT scales the mask logits by 1/4 to balance their gradients against the flow's.
         let mask = Some(
-            self.mask2
-                .forward(both.narrow(1, head, head))
-                .mul_scalar(0.25),
+            conv_forward(&self.mask2, both.narrow(1, head, head)).mul_scalar(0.25),
         );
         (hidden, delta, mask)
     }

@@ -1,0 +1,382 @@
+//! Convolution for inference on the CPU (every layer of Notes S9–S10): the same cross-correlation
+//! as `burn::tensor::module::conv2d`, computed as one matrix product per band of output rows.
+//!
+//! The CPU backend lays every input out channel-last, builds its unfolded patch matrix (im2col)
+//! in tiles of 512 pixels, re-packs the weights for every tile and scatters each product back
+//! channel-first. Here the unfolding stays channel-first, so every patch row is a shifted copy
+//! of an input row (a plain `copy_from_slice` at stride 1), a 1×1 convolution reads its input
+//! in place, and the product writes straight into the output: `out[:, band] = W · cols(band)`
+//! with `W` `[Cout, Cin·kh·kw]` exactly as stored. Bands run in parallel on rayon.
+//!
+//! Only the non-autodiff CPU device takes this path (see [`conv_forward`]); training and other
+//! devices keep burn's differentiable convolution.
+
+use std::cell::RefCell;
+
+use burn::nn::PaddingConfig2d;
+use burn::nn::conv::Conv2d;
+use burn::prelude::*;
+use burn::tensor::module::conv2d;
+use burn::tensor::ops::ConvOptions;
+use rayon::prelude::*;
+
+/// Output pixels per matrix product: big enough for the product to run at full speed, small
+/// enough that the patch matrix of one band stays in the L2 cache and that a 1/8-resolution map
+/// still splits into several bands for the threads.
+const BAND_FLOATS: usize = 1 << 17;
+
+/// `c.forward(x)`, on the host kernel when `x` lives on the non-autodiff CPU device.
+///
+/// # Shapes
+/// `[B, Cin, H, W]` → `[B, Cout, H', W']`
+pub fn conv_forward(c: &Conv2d, x: Tensor<4>) -> Tensor<4> {
+    match c.padding {
+        PaddingConfig2d::Explicit(top, left, bottom, right) if c.groups == 1 => conv2d_forward(
+            x,
+            c.weight.val(),
+            c.bias.as_ref().map(|b| b.val()),
+            ConvOptions::new_with_padding(
+                c.stride,
+                [(top, bottom), (left, right)],
+                c.dilation,
+                1,
+            ),
+        ),
+        _ => c.forward(x),
+    }
+}
+
+/// `burn::tensor::module::conv2d`, on the host kernel when every tensor lives on the
+/// non-autodiff CPU device and the convolution is ungrouped.
+///
+/// # Shapes
+/// `x` `[B, Cin, H, W]`, `weight` `[Cout, Cin, kh, kw]`, `bias` `[Cout]` → `[B, Cout, H', W']`
+pub fn conv2d_forward(
+    x: Tensor<4>,
+    weight: Tensor<4>,
+    bias: Option<Tensor<1>>,
+    options: ConvOptions<2>,
+) -> Tensor<4> {
+    let host = options.groups == 1
+        && !x.is_autodiff()
+        && !weight.is_autodiff()
+        && x.device() == Device::flex()
+        && weight.dims()[1] == x.dims()[1];
+    if !host {
+        return conv2d(x, weight, bias, options);
+    }
+    let device = x.device();
+    let xs = x.dims();
+    let ws = weight.dims();
+    let (xd, wd) = (x.into_data(), weight.into_data());
+    let bd = bias.map(|b| b.into_data());
+    let (Ok(xv), Ok(wv)) = (xd.as_slice::<f32>(), wd.as_slice::<f32>()) else {
+        // Not f32: hand everything back to the backend.
+        let back = |d: TensorData| Tensor::<4>::from_data(d, &device);
+        let bias = bd.map(|d| Tensor::<1>::from_data(d, &device));
+        return conv2d(back(xd), back(wd), bias, options);
+    };
+    let bv = match &bd {
+        Some(d) => match d.as_slice::<f32>() {
+            Ok(v) => Some(v),
+            Err(_) => {
+                let back = |d: TensorData| Tensor::<4>::from_data(d, &device);
+                let bias = bd.map(|d| Tensor::<1>::from_data(d, &device));
+                return conv2d(back(xd), back(wd), bias, options);
+            }
+        },
+        None => None,
+    };
+    let geometry = Geometry::new(xs, ws, &options);
+    let out = geometry.run(xv, wv, bv);
+    Tensor::from_data(TensorData::new(out, geometry.out_shape()), &device)
+}
+
+/// Sizes of one convolution.
+#[derive(Clone, Copy, Debug)]
+struct Geometry {
+    batch: usize,
+    cin: usize,
+    h: usize,
+    w: usize,
+    cout: usize,
+    kh: usize,
+    kw: usize,
+    stride: [usize; 2],
+    /// (top, left)
+    pad: [usize; 2],
+    dilation: [usize; 2],
+    ho: usize,
+    wo: usize,
+}
+
+impl Geometry {
+    fn new([batch, cin, h, w]: [usize; 4], [cout, _, kh, kw]: [usize; 4], o: &ConvOptions<2>) -> Self {
+        let out = |size: usize, (p0, p1): (usize, usize), k: usize, s: usize, d: usize| {
+            let span = d * (k - 1) + 1;
+            (size + p0 + p1).checked_sub(span).map_or(0, |v| v / s + 1)
+        };
+        Self {
+            batch,
+            cin,
+            h,
+            w,
+            cout,
+            kh,
+            kw,
+            stride: o.stride,
+            pad: [o.padding[0].0, o.padding[1].0],
+            dilation: o.dilation,
+            ho: out(h, o.padding[0], kh, o.stride[0], o.dilation[0]),
+            wo: out(w, o.padding[1], kw, o.stride[1], o.dilation[1]),
+        }
+    }
+
+    fn out_shape(&self) -> [usize; 4] {
+        [self.batch, self.cout, self.ho, self.wo]
+    }
+
+    /// Patch length: one column of the unfolded input.
+    fn k(&self) -> usize {
+        self.cin * self.kh * self.kw
+    }
+
+    /// A 1×1, stride-1, unpadded convolution reads its input as the patch matrix.
+    fn is_pointwise(&self) -> bool {
+        self.kh == 1 && self.kw == 1 && self.stride == [1, 1] && self.pad == [0, 0]
+    }
+
+    /// The convolution of `x` `[B, Cin, H, W]` by `w` `[Cout, Cin, kh, kw]` (+ `bias`), as a
+    /// row-major `[B, Cout, H', W']`.
+    fn run(&self, x: &[f32], w: &[f32], bias: Option<&[f32]>) -> Vec<f32> {
+        let (hw_out, k) = (self.ho * self.wo, self.k());
+        let mut out = vec![0f32; self.batch * self.cout * hw_out];
+        if hw_out == 0 || self.cout == 0 {
+            return out;
+        }
+        if k == 0 {
+            // No input channels: the output is the bias.
+            if let Some(b) = bias {
+                for (c, plane) in out.chunks_exact_mut(hw_out).enumerate() {
+                    plane.fill(b[c % self.cout]);
+                }
+            }
+            return out;
+        }
+        let rows = (BAND_FLOATS / (k * self.wo)).clamp(1, self.ho);
+        let bands_per_image = self.ho.div_ceil(rows);
+        let dst = SendPtr(out.as_mut_ptr());
+        (0..self.batch * bands_per_image)
+            .into_par_iter()
+            .for_each(|task| {
+                let (b, band) = (task / bands_per_image, task % bands_per_image);
+                let oy0 = band * rows;
+                let oy1 = (oy0 + rows).min(self.ho);
+                // SAFETY: every task writes the pixels of its own rows [oy0, oy1) of its own
+                // image, so no two tasks touch the same element, and `out` outlives the loop.
+                unsafe { self.band(x, w, bias, b, oy0, oy1, dst) };
+            });
+        out
+    }
+
+    /// Output rows `[oy0, oy1)` of image `b`.
+    ///
+    /// # Safety
+    /// `dst` points at the `[B, Cout, H', W']` output, and no other thread writes these rows.
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn band(
+        &self,
+        x: &[f32],
+        w: &[f32],
+        bias: Option<&[f32]>,
+        b: usize,
+        oy0: usize,
+        oy1: usize,
+        dst: SendPtr,
+    ) {
+        let (hw_in, hw_out, k) = (self.h * self.w, self.ho * self.wo, self.k());
+        let n = (oy1 - oy0) * self.wo;
+        let p0 = oy0 * self.wo;
+        let image = &x[b * self.cin * hw_in..(b + 1) * self.cin * hw_in];
+        // SAFETY (all of the raw pointer uses below): the caller gives this band to this thread
+        // alone; offsets stay inside image b's [Cout, H'·W'] block.
+        let out = unsafe { dst.0.add(b * self.cout * hw_out + p0) };
+        if let Some(bias) = bias {
+            for (c, &v) in bias.iter().enumerate().take(self.cout) {
+                let row = unsafe { std::slice::from_raw_parts_mut(out.add(c * hw_out), n) };
+                row.fill(v);
+            }
+        }
+        let product = |rhs: *const f32, rhs_rs: usize| unsafe {
+            gemm::gemm(
+                self.cout,
+                n,
+                k,
+                out,
+                1,
+                hw_out as isize,
+                bias.is_some(),
+                w.as_ptr(),
+                1,
+                k as isize,
+                rhs,
+                1,
+                rhs_rs as isize,
+                1.0f32,
+                1.0f32,
+                false,
+                false,
+                false,
+                gemm::Parallelism::None,
+            )
+        };
+        if self.is_pointwise() {
+            product(image[p0..].as_ptr(), hw_in);
+            return;
+        }
+        PATCHES.with(|cell| {
+            let mut cols = cell.borrow_mut();
+            if cols.len() < k * n {
+                cols.resize(k * n, 0.0);
+            }
+            self.unfold(image, oy0, oy1, &mut cols[..k * n]);
+            product(cols.as_ptr(), n);
+        });
+    }
+
+    /// The patch matrix of output rows `[oy0, oy1)`: `cols[(c·kh + ky)·kw + kx][p]` is the input
+    /// under tap (ky, kx) of channel c for output pixel p of the band, zero outside the image.
+    ///
+    /// # Shapes
+    /// `image` `[Cin, H, W]` → `cols` `[Cin·kh·kw, (oy1 − oy0)·W']`
+    fn unfold(&self, image: &[f32], oy0: usize, oy1: usize, cols: &mut [f32]) {
+        let n = (oy1 - oy0) * self.wo;
+        let [sy, sx] = self.stride;
+        let [dy, dx] = self.dilation;
+        let [py, px] = self.pad;
+        for (row, dst) in cols.chunks_exact_mut(n).enumerate() {
+            let (c, tap) = (row / (self.kh * self.kw), row % (self.kh * self.kw));
+            let (ky, kx) = (tap / self.kw, tap % self.kw);
+            let plane = &image[c * self.h * self.w..(c + 1) * self.h * self.w];
+            // Output columns whose input column ox·sx + kx·dx − px lies inside [0, W).
+            let shift = (kx * dx) as isize - px as isize;
+            let lo = ((-shift).max(0) as usize).div_ceil(sx).min(self.wo);
+            let hi = if (self.w as isize) <= shift {
+                lo
+            } else {
+                ((self.w as isize - shift - 1) as usize / sx + 1).clamp(lo, self.wo)
+            };
+            for (oy, seg) in (oy0..oy1).zip(dst.chunks_exact_mut(self.wo)) {
+                let iy = (oy * sy + ky * dy) as isize - py as isize;
+                if iy < 0 || iy >= self.h as isize {
+                    seg.fill(0.0);
+                    continue;
+                }
+                let src = &plane[iy as usize * self.w..(iy as usize + 1) * self.w];
+                seg[..lo].fill(0.0);
+                seg[hi..].fill(0.0);
+                if lo == hi {
+                    continue;
+                }
+                let first = (lo * sx) as isize + shift; // ≥ 0 by the choice of lo
+                if sx == 1 {
+                    let first = first as usize;
+                    seg[lo..hi].copy_from_slice(&src[first..first + (hi - lo)]);
+                } else {
+                    for (i, v) in seg[lo..hi].iter_mut().enumerate() {
+                        *v = src[first as usize + i * sx];
+                    }
+                }
+            }
+        }
+    }
+}
+
+thread_local! {
+    /// Each rayon thread's patch matrix, kept between calls.
+    static PATCHES: RefCell<Vec<f32>> = const { RefCell::new(Vec::new()) };
+}
+
+/// The output pointer, shared by the band tasks.
+#[derive(Clone, Copy)]
+struct SendPtr(*mut f32);
+// SAFETY: the tasks write disjoint rows (see `Geometry::run`).
+unsafe impl Send for SendPtr {}
+unsafe impl Sync for SendPtr {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::Distribution;
+
+    /// The host kernel gives burn's numbers for every kind of convolution in the network:
+    /// 3×3, strided, dilated beyond the image, 7×7, 1×1 with and without stride, no bias,
+    /// asymmetric padding, batches, and maps smaller than the kernel.
+    #[test]
+    fn host_convolution_matches_burn() {
+        let dev = Device::flex();
+        // (cin, cout, kernel, stride, dilation, padding (top, bottom, left, right), h, w, batch, bias)
+        let cases = [
+            (5, 7, 3, 1, 1, (1, 1, 1, 1), 9, 11, 2, true),
+            (4, 6, 3, 2, 1, (1, 1, 1, 1), 10, 13, 1, true),
+            (3, 8, 7, 2, 1, (3, 3, 3, 3), 16, 20, 2, true),
+            (6, 6, 3, 1, 6, (6, 6, 6, 6), 5, 7, 1, true),
+            (6, 5, 3, 1, 18, (18, 18, 18, 18), 4, 6, 2, false),
+            (9, 4, 1, 1, 1, (0, 0, 0, 0), 6, 8, 2, true),
+            (9, 4, 1, 2, 1, (0, 0, 0, 0), 7, 9, 1, true),
+            (2, 3, 7, 1, 1, (3, 3, 3, 3), 3, 4, 1, true),
+            (3, 4, 3, 1, 1, (0, 2, 1, 0), 6, 5, 1, true),
+            (2, 3, 3, 3, 2, (0, 0, 0, 0), 12, 14, 1, false),
+        ];
+        for (cin, cout, k, s, d, (pt, pb, pl, pr), h, w, b, with_bias) in cases {
+            let x = Tensor::<4>::random([b, cin, h, w], Distribution::Normal(0.0, 1.0), &dev);
+            let wt = Tensor::<4>::random([cout, cin, k, k], Distribution::Normal(0.0, 1.0), &dev);
+            let bias = with_bias
+                .then(|| Tensor::<1>::random([cout], Distribution::Normal(0.0, 1.0), &dev));
+            let opts = ConvOptions::new_with_padding([s, s], [(pt, pb), (pl, pr)], [d, d], 1);
+            let want = conv2d(x.clone(), wt.clone(), bias.clone(), opts.clone());
+            let got = conv2d_forward(x, wt, bias, opts);
+            assert_eq!(got.dims(), want.dims(), "case {cin} {cout} {k} {s} {d}");
+            let diff: f32 = (got - want).abs().max().into_scalar();
+            assert!(diff < 1e-4, "case {cin} {cout} {k} {s} {d}: max difference {diff}");
+        }
+    }
+
+    /// A map larger than one band (several bands per image, on several threads) still matches.
+    #[test]
+    fn host_convolution_matches_burn_across_bands() {
+        let dev = Device::flex();
+        let (cin, cout, h, w) = (64, 16, 70, 90);
+        let x = Tensor::<4>::random([2, cin, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let wt = Tensor::<4>::random([cout, cin, 3, 3], Distribution::Normal(0.0, 0.1), &dev);
+        let bias = Tensor::<1>::random([cout], Distribution::Normal(0.0, 1.0), &dev);
+        let opts = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
+        let g = Geometry::new([2, cin, h, w], [cout, cin, 3, 3], &opts);
+        assert!(g.ho.div_ceil((BAND_FLOATS / (g.k() * g.wo)).max(1)) > 2, "one band only");
+        let want = conv2d(x.clone(), wt.clone(), Some(bias.clone()), opts.clone());
+        let got = conv2d_forward(x, wt, Some(bias), opts);
+        let diff: f32 = (got - want).abs().max().into_scalar();
+        assert!(diff < 1e-4, "max difference {diff}");
+    }
+
+    /// The module form uses the layer's own stride, dilation and explicit padding, and falls
+    /// back to burn (same numbers) under autodiff.
+    #[test]
+    fn module_form_matches_the_layer() {
+        let dev = Device::flex();
+        let layer = super::super::blocks::conv(4, 6, 3, 2, 1, &dev);
+        let x = Tensor::<4>::random([1, 4, 12, 10], Distribution::Normal(0.0, 1.0), &dev);
+        let diff: f32 = (conv_forward(&layer, x.clone()) - layer.forward(x))
+            .abs()
+            .max()
+            .into_scalar();
+        assert!(diff < 1e-4, "max difference {diff}");
+        let ad = dev.autodiff();
+        let layer = super::super::blocks::conv(4, 6, 3, 1, 2, &ad);
+        let x = Tensor::<4>::random([1, 4, 9, 9], Distribution::Normal(0.0, 1.0), &ad);
+        let y = conv_forward(&layer, x.clone());
+        assert!(y.is_autodiff());
+        let diff: f32 = (y - layer.forward(x)).abs().max().into_scalar();
+        assert!(diff < 1e-5, "max difference {diff}");
+    }
+}
