@@ -8,6 +8,7 @@ use burn::tensor::activation::relu;
 
 use super::config::NormKind;
 use super::host_conv::conv_forward;
+use super::host_norm::{group_norm, on_host};
 
 /// A k×k convolution with `stride` and `dilation`, padded so that stride 1 keeps the size.
 /// Padding is explicit: burn's `Same` ignores dilation.
@@ -70,6 +71,25 @@ impl Norm {
     /// # Shapes
     /// `[B, C, H, W]` → `[B, C, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        if on_host(&x) {
+            let param = |p: &Option<burn::module::Param<Tensor<1>>>| p.as_ref().map(|p| p.val());
+            let host = if let Some(n) = &self.instance {
+                let c = n.num_channels;
+                Some((c, n.epsilon, param(&n.gamma), param(&n.beta)))
+            } else {
+                self.group
+                    .as_ref()
+                    .map(|n| (n.num_groups, n.epsilon, param(&n.gamma), param(&n.beta)))
+            };
+            if let Some((groups, eps, gamma, beta)) = host
+                && x.dims()[1] % groups.max(1) == 0
+            {
+                // Falls back to the layer below only for data that is not f32.
+                if let Some(y) = group_norm(x.clone(), groups, eps, gamma, beta) {
+                    return y;
+                }
+            }
+        }
         if let Some(n) = &self.instance {
             n.forward(x)
         } else if let Some(n) = &self.group {

@@ -65,14 +65,22 @@ impl Mms {
         let device = image1.device();
         // [0, 1] → [−1, 1], as RAFT normalises its inputs.
         let norm = |x: Tensor<4>| x.mul_scalar(2.0).sub_scalar(1.0);
-        // Both frames through the shared feature encoder in one batch.
-        let features = self
-            .feature_encoder
-            .forward(Tensor::cat(vec![norm(image1.clone()), norm(image2)], 0));
+        // Both frames through the shared feature encoder in one batch; the context encoder
+        // beside it. At inference the two run concurrently, so small layers that cannot use
+        // every core leave the rest to the other encoder.
+        let features = || {
+            self.feature_encoder
+                .forward(Tensor::cat(vec![norm(image1.clone()), norm(image2.clone())], 0))
+        };
+        let context = || self.context_encoder.forward(norm(image1.clone())); // [B, Ch + Cc, H/8, W/8]
+        let (features, context) = if image1.is_autodiff() {
+            (features(), context())
+        } else {
+            rayon::join(features, context)
+        };
         let f1 = features.clone().narrow(0, 0, b); // [B, C, H/8, W/8]
         let f2 = features.narrow(0, b, b);
         let corr = CorrPyramid::new(f1, f2, self.corr_levels, self.corr_radius);
-        let context = self.context_encoder.forward(norm(image1)); // [B, Ch + Cc, H/8, W/8]
         let ctx_dim = context.dims()[1] - self.hidden_dim;
         let mut hidden = tanh(context.clone().narrow(1, 0, self.hidden_dim));
         let context = relu(context.narrow(1, self.hidden_dim, ctx_dim));

@@ -5,6 +5,7 @@ pub mod config;
 pub mod corr;
 pub mod encoder;
 pub mod host_conv;
+pub mod host_norm;
 pub mod mms;
 pub mod padder;
 pub mod update;
