@@ -16,8 +16,8 @@ use rayon::prelude::*;
 enum Level {
     /// A tensor, differentiable.
     Graph(Tensor<3>),
-    /// Row-major host memory (f32 when read back through [`TensorData::as_slice`]).
-    Host(TensorData),
+    /// Row-major host memory.
+    Host(Vec<f32>),
 }
 
 /// The correlation pyramid of one image pair.
@@ -44,10 +44,25 @@ impl CorrPyramid {
         Self::build(f1, f2, num_levels, radius, false)
     }
 
-    /// Builds the levels; with `host`, each level moves to host memory as soon as the next one
-    /// is pooled from it, so no level is ever held twice.
+    /// Builds the levels; with `host`, on host memory (see [`host_pyramid`]).
     fn build(f1: Tensor<4>, f2: Tensor<4>, num_levels: usize, radius: usize, host: bool) -> Self {
         let [b, c, h, w] = f1.dims();
+        if host
+            && let (Ok(a), Ok(bv)) = (
+                f1.clone().into_data().try_into_vec::<f32>(),
+                f2.clone().into_data().try_into_vec::<f32>(),
+            )
+        {
+            let (levels, sizes) = host_pyramid(&a, &bv, [b, c, h, w], num_levels);
+            return Self {
+                levels: levels.into_iter().map(Level::Host).collect(),
+                sizes,
+                batch: b,
+                height: h,
+                width: w,
+                radius,
+            };
+        }
         let corr = f1
             .reshape([b, c, h * w])
             .swap_dims(1, 2)
@@ -70,12 +85,7 @@ impl CorrPyramid {
                     AvgPoolOptions::new(k).with_stride(k),
                 ));
             }
-            let level = level.reshape([n, hl, wl]);
-            levels.push(if host {
-                Level::Host(level.into_data())
-            } else {
-                Level::Graph(level)
-            });
+            levels.push(Level::Graph(level.reshape([n, hl, wl])));
         }
         Self {
             levels,
@@ -98,7 +108,7 @@ impl CorrPyramid {
             .levels
             .iter()
             .map(|l| match l {
-                Level::Host(d) => d.as_slice::<f32>().ok(),
+                Level::Host(d) => Some(d.as_slice()),
                 Level::Graph(_) => None,
             })
             .collect();
@@ -112,10 +122,14 @@ impl CorrPyramid {
         let levels: Vec<Tensor<3>> = self
             .levels
             .iter()
-            .map(|l| match l {
+            .enumerate()
+            .map(|(i, l)| match l {
                 Level::Graph(t) => t.clone(),
-                // Host data that cannot be read as f32 goes back to the tensor path.
-                Level::Host(d) => Tensor::from_data(d.clone(), &device),
+                // Host levels with coordinates that cannot be read as f32.
+                Level::Host(d) => {
+                    let (hl, wl) = self.sizes[i];
+                    Tensor::from_data(TensorData::new(d.clone(), [b * h * w, hl, wl]), &device)
+                }
             })
             .collect();
         self.lookup_graph(&levels, coords)
@@ -134,6 +148,88 @@ impl CorrPyramid {
         }
         Tensor::cat(out, 3).permute([0, 3, 1, 2]) // [B, L·k², H, W]
     }
+}
+
+/// The correlation pyramid on host memory: level 0 is one matrix product per image,
+/// `corr[p, q] = f1[:, p] · f2[:, q] / √C`, written straight into the level; every further level
+/// is the 2×2 average of the one before (1 cell wide sides are kept), as `avg_pool2d` gives.
+///
+/// # Shapes
+/// `f1`, `f2`: `[B, C, H, W]` → levels `[B·H·W, h_l, w_l]` with their `(h_l, w_l)`
+fn host_pyramid(
+    f1: &[f32],
+    f2: &[f32],
+    [b, c, h, w]: [usize; 4],
+    num_levels: usize,
+) -> (Vec<Vec<f32>>, Vec<(usize, usize)>) {
+    let hw = h * w;
+    let mut level = vec![0f32; b * hw * hw];
+    for bi in 0..b {
+        let (a, bb) = (&f1[bi * c * hw..(bi + 1) * c * hw], &f2[bi * c * hw..(bi + 1) * c * hw]);
+        let dst = &mut level[bi * hw * hw..(bi + 1) * hw * hw];
+        if hw == 0 {
+            continue;
+        }
+        // SAFETY: dst is [HW, HW] row-major; lhs reads f1 as its transpose [HW, C] (row stride
+        // 1, column stride HW) and rhs f2 as [C, HW]; all three stay inside their slices.
+        unsafe {
+            gemm::gemm(
+                hw,
+                hw,
+                c,
+                dst.as_mut_ptr(),
+                1,
+                hw as isize,
+                false,
+                a.as_ptr(),
+                hw as isize,
+                1,
+                bb.as_ptr(),
+                1,
+                hw as isize,
+                0.0f32,
+                1.0 / (c as f32).sqrt(),
+                false,
+                false,
+                false,
+                gemm::Parallelism::Rayon(0),
+            );
+        }
+    }
+    let n = b * hw;
+    let mut levels = Vec::with_capacity(num_levels);
+    let mut sizes = Vec::with_capacity(num_levels);
+    let (mut hl, mut wl) = (h, w);
+    for l in 0..num_levels {
+        sizes.push((hl, wl));
+        if l + 1 < num_levels {
+            let (kh, kw) = (2.min(hl), 2.min(wl));
+            let (h2, w2) = (hl / kh, wl / kw);
+            let mut next = vec![0f32; n * h2 * w2];
+            let inv = 1.0 / (kh * kw) as f32;
+            if h2 * w2 > 0 {
+                next.par_chunks_mut(h2 * w2)
+                    .zip(level.par_chunks(hl * wl))
+                    .for_each(|(dst, src)| {
+                        for y in 0..h2 {
+                            for x in 0..w2 {
+                                let mut sum = 0.0;
+                                for dy in 0..kh {
+                                    let row = &src[(y * kh + dy) * wl + x * kw..];
+                                    sum += row[..kw].iter().sum::<f32>();
+                                }
+                                dst[y * w2 + x] = sum * inv;
+                            }
+                        }
+                    });
+            }
+            levels.push(std::mem::replace(&mut level, next));
+            (hl, wl) = (h2, w2);
+        } else {
+            levels.push(std::mem::take(&mut level));
+        }
+    }
+    (levels, sizes)
 }
 
 /// The lookup of [`CorrPyramid::lookup`] on host memory: for every pixel and level, the
