@@ -8,8 +8,9 @@
 //! in place, and the product writes straight into the output: `out[:, band] = W · cols(band)`
 //! with `W` `[Cout, Cin·kh·kw]` exactly as stored. Bands run in parallel on rayon.
 //!
-//! Only the non-autodiff CPU device takes this path (see [`conv_forward`]); training and other
-//! devices keep burn's differentiable convolution.
+//! The non-autodiff CPU device takes this path directly (see [`conv_forward`]); training reaches
+//! the same kernels through the differentiable operation of [`super::train_conv`]; other devices
+//! keep burn's convolution.
 
 use std::cell::RefCell;
 
@@ -19,6 +20,8 @@ use burn::prelude::*;
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 use rayon::prelude::*;
+
+use super::train_conv::conv2d_train;
 
 /// Floats of one band's patch matrix: big enough for the product to run at full speed (measured
 /// best among 2^17, 2^19 and 2^21 on the update block's and encoders' layers), small enough to
@@ -47,7 +50,8 @@ pub fn conv_forward(c: &Conv2d, x: Tensor<4>) -> Tensor<4> {
 }
 
 /// `burn::tensor::module::conv2d`, on the host kernel when every tensor lives on the
-/// non-autodiff CPU device and the convolution is ungrouped.
+/// non-autodiff CPU device and the convolution is ungrouped; under autodiff, through
+/// [`conv2d_train`] (host kernels for the stride-1 layers, burn's for the rest).
 ///
 /// # Shapes
 /// `x` `[B, Cin, H, W]`, `weight` `[Cout, Cin, kh, kw]`, `bias` `[Cout]` → `[B, Cout, H', W']`
@@ -57,6 +61,9 @@ pub fn conv2d_forward(
     bias: Option<Tensor<1>>,
     options: ConvOptions<2>,
 ) -> Tensor<4> {
+    if x.is_autodiff() || weight.is_autodiff() {
+        return conv2d_train(x, weight, bias, options);
+    }
     let host = options.groups == 1
         && !x.is_autodiff()
         && !weight.is_autodiff()
@@ -90,6 +97,34 @@ pub fn conv2d_forward(
     let geometry = Geometry::new(xs, ws, &options);
     let out = geometry.run(xv, wv, bv);
     Tensor::from_data(TensorData::new(out, geometry.out_shape()), &device)
+}
+
+/// ∂L/∂W of an ungrouped convolution on the host, given its input and the gradient of its output:
+/// `Σ_images Σ_bands grad(band) · cols(band)ᵀ`, the unfolding of the forward pass transposed.
+/// `None` when the data is not f32.
+///
+/// # Shapes
+/// `x` `[B, Cin, H, W]`, `grad` `[B, Cout, H', W']` → `[Cout, Cin, kh, kw]`
+pub fn conv2d_weight_grad(
+    x: Tensor<4>,
+    grad: Tensor<4>,
+    [kh, kw]: [usize; 2],
+    options: &ConvOptions<2>,
+) -> Option<Tensor<4>> {
+    let device = x.device();
+    let xs = x.dims();
+    let cout = grad.dims()[1];
+    let geometry = Geometry::new(xs, [cout, xs[1], kh, kw], options);
+    if grad.dims() != geometry.out_shape() {
+        return None;
+    }
+    let (xd, gd) = (x.into_data(), grad.into_data());
+    let (xv, gv) = (xd.as_slice::<f32>().ok()?, gd.as_slice::<f32>().ok()?);
+    let dw = geometry.weight_grad(xv, gv);
+    Some(Tensor::from_data(
+        TensorData::new(dw, [cout, xs[1], kh, kw]),
+        &device,
+    ))
 }
 
 /// Sizes of one convolution.
@@ -163,9 +198,7 @@ impl Geometry {
             }
             return out;
         }
-        // At least two bands per image, so that one image still feeds two threads.
-        let rows = (BAND_FLOATS / (k * self.wo)).clamp(1, self.ho.div_ceil(2).max(1));
-        let bands_per_image = self.ho.div_ceil(rows);
+        let (rows, bands_per_image) = self.bands();
         let dst = SendPtr(out.as_mut_ptr());
         (0..self.batch * bands_per_image)
             .into_par_iter()
@@ -178,6 +211,88 @@ impl Geometry {
                 unsafe { self.band(x, w, bias, b, oy0, oy1, dst) };
             });
         out
+    }
+
+    /// Rows per band and bands per image.
+    fn bands(&self) -> (usize, usize) {
+        // At least two bands per image, so that one image still feeds two threads.
+        let rows = (BAND_FLOATS / (self.k() * self.wo)).clamp(1, self.ho.div_ceil(2).max(1));
+        (rows, self.ho.div_ceil(rows))
+    }
+
+    /// `[Cout, Cin·kh·kw]`: Σ over images and bands of `g(band) · cols(band)ᵀ`, one partial sum
+    /// per thread, added at the end.
+    fn weight_grad(&self, x: &[f32], g: &[f32]) -> Vec<f32> {
+        let (k, cout) = (self.k(), self.cout);
+        if self.ho * self.wo == 0 || k == 0 || cout == 0 {
+            return vec![0f32; cout * k];
+        }
+        let (rows, bands_per_image) = self.bands();
+        (0..self.batch * bands_per_image)
+            .into_par_iter()
+            .fold(
+                || vec![0f32; cout * k],
+                |mut acc, task| {
+                    let (b, band) = (task / bands_per_image, task % bands_per_image);
+                    let oy0 = band * rows;
+                    self.band_weight_grad(x, g, b, oy0, (oy0 + rows).min(self.ho), &mut acc);
+                    acc
+                },
+            )
+            .reduce(
+                || vec![0f32; cout * k],
+                |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(u, v)| *u += v);
+                    a
+                },
+            )
+    }
+
+    /// Adds `g(rows [oy0, oy1) of image b) · cols(band)ᵀ` to `acc` `[Cout, k]`.
+    fn band_weight_grad(&self, x: &[f32], g: &[f32], b: usize, oy0: usize, oy1: usize, acc: &mut [f32]) {
+        let (hw_in, hw_out, k) = (self.h * self.w, self.ho * self.wo, self.k());
+        let n = (oy1 - oy0) * self.wo;
+        let p0 = oy0 * self.wo;
+        let image = &x[b * self.cin * hw_in..(b + 1) * self.cin * hw_in];
+        let grad = &g[b * self.cout * hw_out + p0..];
+        // rhs = colsᵀ [n, k]: element (p, kk) at rhs[p·rs + kk·cs].
+        let product = |rhs: *const f32, rhs_cs: usize, acc: &mut [f32]| unsafe {
+            // SAFETY: acc is [Cout, k]; grad rows hold n pixels at stride H'·W'; rhs spans
+            // k columns of n pixels at the given strides, inside its slice.
+            gemm::gemm(
+                self.cout,
+                k,
+                n,
+                acc.as_mut_ptr(),
+                1,
+                k as isize,
+                true,
+                grad.as_ptr(),
+                1,
+                hw_out as isize,
+                rhs,
+                rhs_cs as isize,
+                1,
+                1.0f32,
+                1.0f32,
+                false,
+                false,
+                false,
+                gemm::Parallelism::None,
+            )
+        };
+        if self.is_pointwise() {
+            product(image[p0..].as_ptr(), hw_in, acc);
+            return;
+        }
+        PATCHES.with(|cell| {
+            let mut cols = cell.borrow_mut();
+            if cols.len() < k * n {
+                cols.resize(k * n, 0.0);
+            }
+            self.unfold(image, oy0, oy1, &mut cols[..k * n]);
+            product(cols.as_ptr(), n, acc);
+        });
     }
 
     /// Output rows `[oy0, oy1)` of image `b`.

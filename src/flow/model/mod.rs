@@ -7,6 +7,7 @@ pub mod encoder;
 pub mod host_conv;
 pub mod host_norm;
 pub mod mms;
+pub mod train_conv;
 pub mod padder;
 pub mod update;
 pub mod upsample;

@@ -1,0 +1,230 @@
+//! The stride-1 convolutions of training (every 3×3 layer of Notes S9–S10) as one autodiff
+//! operation on the CPU backend whose forward and backward passes run the host kernels of
+//! [`super::host_conv`]:
+//!
+//! - forward: `y = W ⋆ x` by channel-first unfolding and one product per band of rows;
+//! - `∂L/∂x = W̃ ⋆ ∂L/∂y`, with `W̃[c, o] = W[o, c]` flipped in both axes and the padding
+//!   mirrored (`d·(k−1) − p`): for stride 1 the transposed convolution is a convolution;
+//! - `∂L/∂W = Σ ∂L/∂y(band) · cols(band)ᵀ`, the forward unfolding reused.
+//!
+//! The bias is added after, as an ordinary differentiable broadcast. Strided or grouped
+//! convolutions, other devices and other dtypes keep burn's `conv2d`.
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::NodeId;
+use burn::backend::{Autodiff, BackendTypes, Flex};
+use burn::prelude::*;
+use burn::tensor::module::conv2d;
+use burn::tensor::ops::ConvOptions;
+
+use super::host_conv::{conv2d_forward, conv2d_weight_grad};
+
+type Ad = Autodiff<Flex, NoCheckpointing>;
+/// A CPU-backend tensor primitive.
+type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
+/// Its autodiff-tracked form.
+type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
+
+/// `conv2d(x, weight, bias, options)` under autodiff, through the host kernels when the
+/// convolution and the device allow it (see the module notes), else burn's `conv2d`.
+///
+/// # Shapes
+/// `x` `[B, Cin, H, W]`, `weight` `[Cout, Cin, kh, kw]`, `bias` `[Cout]` → `[B, Cout, H', W']`
+pub fn conv2d_train(
+    x: Tensor<4>,
+    weight: Tensor<4>,
+    bias: Option<Tensor<1>>,
+    options: ConvOptions<2>,
+) -> Tensor<4> {
+    let [_, _, kh, kw] = weight.dims();
+    let [dy, dx] = options.dilation;
+    let mirrored = options.padding[0].0.max(options.padding[0].1) <= dy * (kh - 1)
+        && options.padding[1].0.max(options.padding[1].1) <= dx * (kw - 1);
+    let suitable = options.stride == [1, 1]
+        && options.groups == 1
+        && mirrored
+        && x.dims()[1] == weight.dims()[1]
+        && x.dtype() == burn::tensor::DType::F32
+        && weight.dtype() == burn::tensor::DType::F32;
+    if suitable
+        && let (Ok(xp), Ok(wp)) = (
+            x.clone().try_into_primitive::<Ad>(),
+            weight.clone().try_into_primitive::<Ad>(),
+        )
+    {
+        let y = Tensor::<4>::from_primitive::<Ad>(host_conv_op(xp, wp, options));
+        return match bias {
+            Some(b) => {
+                let c = b.dims()[0];
+                y + b.reshape([1, c, 1, 1])
+            }
+            None => y,
+        };
+    }
+    conv2d(x, weight, bias, options)
+}
+
+/// A flex tensor as a non-autodiff `Tensor` (no copy).
+fn plain(t: FlexT) -> Tensor<4> {
+    Tensor::<4>::from_primitive::<Flex>(t)
+}
+
+/// Back to the flex primitive. The host kernels return flex tensors, so this cannot fail for
+/// their outputs.
+fn primitive(t: Tensor<4>) -> FlexT {
+    match t.try_into_primitive::<Flex>() {
+        Ok(p) => p,
+        Err(e) => panic!("host convolution produced a tensor off the CPU backend: {e:?}"),
+    }
+}
+
+/// The bias-free convolution as one tracked operation.
+fn host_conv_op(
+    x: AdT,
+    w: AdT,
+    options: ConvOptions<2>,
+) -> AdT {
+    #[derive(Debug)]
+    struct HostConv;
+
+    impl Backward<Flex, 2> for HostConv {
+        type State = (NodeId, NodeId, ConvOptions<2>);
+
+        fn backward(
+            self,
+            ops: Ops<Self::State, 2>,
+            grads: &mut Gradients,
+            checkpointer: &mut Checkpointer,
+        ) {
+            let [node_x, node_w] = ops.parents;
+            let grad = plain(grads.consume::<Flex>(&ops.node));
+            let (x_state, w_state, options) = ops.state;
+            let x = plain(checkpointer.retrieve_node_output(x_state));
+            let w = plain(checkpointer.retrieve_node_output(w_state));
+            let [_, _, kh, kw] = w.dims();
+            if let Some(node) = node_x {
+                let [dy, dx] = options.dilation;
+                let (py, px) = (dy * (kh - 1), dx * (kw - 1));
+                let mirrored = ConvOptions::new_with_padding(
+                    [1, 1],
+                    [
+                        (py - options.padding[0].0, py - options.padding[0].1),
+                        (px - options.padding[1].0, px - options.padding[1].1),
+                    ],
+                    options.dilation,
+                    1,
+                );
+                let wt = w.clone().swap_dims(0, 1).flip([2, 3]); // [Cin, Cout, kh, kw]
+                let dx = conv2d_forward(grad.clone(), wt, None, mirrored);
+                grads.register::<Flex>(node.id, primitive(dx));
+            }
+            if let Some(node) = node_w {
+                let dw = conv2d_weight_grad(x.clone(), grad.clone(), [kh, kw], &options)
+                    .unwrap_or_else(|| {
+                        // Not reachable for the f32 tensors this operation accepts; burn's
+                        // formula keeps the gradient right if it ever is.
+                        burn::tensor::module::conv2d_weight_backward(x, w, grad, options)
+                    });
+                grads.register::<Flex>(node.id, primitive(dw));
+            }
+        }
+    }
+
+    let forward = |x: &AdT,
+                   w: &AdT,
+                   options: ConvOptions<2>| {
+        primitive(conv2d_forward(
+            plain(x.primitive().clone()),
+            plain(w.primitive().clone()),
+            None,
+            options,
+        ))
+    };
+    match HostConv
+        .prepare::<NoCheckpointing>([x.node(), w.node()])
+        .compute_bound()
+        .stateful()
+    {
+        OpsKind::Tracked(mut prep) => {
+            let x_state = prep.checkpoint(&x);
+            let w_state = prep.checkpoint(&w);
+            let y = forward(&x, &w, options.clone());
+            prep.finish((x_state, w_state, options), y)
+        }
+        OpsKind::UnTracked(prep) => prep.finish(forward(&x, &w, options)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::tensor::Distribution;
+
+    /// Output and gradients (input, weight, bias) equal those of burn's convolution, for a
+    /// padded 3×3, a dilated one wider than the map, a 7×7 and a 1×1, with a loss that weights
+    /// every output differently.
+    #[test]
+    fn host_training_convolution_matches_burn() {
+        let dev = Device::flex().autodiff();
+        // (cin, cout, k, dilation, pad, h, w, batch)
+        for (cin, cout, k, d, p, h, w, b) in [
+            (5, 7, 3, 1, 1, 9, 11, 2),
+            (6, 4, 3, 6, 6, 5, 7, 1),
+            (2, 8, 7, 1, 3, 10, 12, 2),
+            (9, 5, 1, 1, 0, 6, 8, 2),
+            (16, 24, 3, 1, 1, 40, 52, 1),
+        ] {
+            let x0 = Tensor::<4>::random([b, cin, h, w], Distribution::Normal(0.0, 1.0), &dev);
+            let w0 = Tensor::<4>::random([cout, cin, k, k], Distribution::Normal(0.0, 0.3), &dev);
+            let b0 = Tensor::<1>::random([cout], Distribution::Normal(0.0, 1.0), &dev);
+            let opts = ConvOptions::new([1, 1], [p, p], [d, d], 1);
+            let weights = Tensor::<4>::random(
+                [b, cout, h + 2 * p - d * (k - 1), w + 2 * p - d * (k - 1)],
+                Distribution::Normal(0.0, 1.0),
+                &dev,
+            );
+            let run = |host: bool| {
+                let (x, wt, bias) = (
+                    x0.clone().detach().require_grad(),
+                    w0.clone().detach().require_grad(),
+                    b0.clone().detach().require_grad(),
+                );
+                let y = if host {
+                    conv2d_train(x.clone(), wt.clone(), Some(bias.clone()), opts.clone())
+                } else {
+                    conv2d(x.clone(), wt.clone(), Some(bias.clone()), opts.clone())
+                };
+                let g = (y.clone() * weights.clone()).sum().backward();
+                let grad = |t: &Tensor<4>| t.grad(&g).expect("gradient");
+                (
+                    y.inner(),
+                    grad(&x),
+                    grad(&wt),
+                    bias.grad(&g).expect("bias gradient"),
+                )
+            };
+            let (ya, gxa, gwa, gba) = run(true);
+            let (yb, gxb, gwb, gbb) = run(false);
+            let close = |a: Tensor<4>, b: Tensor<4>, what: &str| {
+                let scale: f32 = b.clone().abs().max().into_scalar();
+                let diff: f32 = (a - b).abs().max().into_scalar();
+                assert!(diff <= 1e-4 * scale.max(1.0), "{cin}->{cout} k{k} d{d}: {what} off by {diff}");
+            };
+            close(ya, yb, "output");
+            close(gxa, gxb, "input gradient");
+            close(gwa, gwb, "weight gradient");
+            close(gba.reshape([1, cout, 1, 1]), gbb.reshape([1, cout, 1, 1]), "bias gradient");
+        }
+    }
+
+    /// The autodiff device really takes the host operation (not the fallback).
+    #[test]
+    fn autodiff_tensors_reach_the_host_operation() {
+        let dev = Device::flex().autodiff();
+        let x = Tensor::<4>::zeros([1, 2, 4, 4], &dev);
+        assert!(x.try_into_primitive::<Ad>().is_ok());
+    }
+}
