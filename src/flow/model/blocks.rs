@@ -9,6 +9,7 @@ use burn::tensor::activation::relu;
 use super::config::NormKind;
 use super::host_conv::conv_forward;
 use super::host_norm::{group_norm, on_host};
+use super::train_norm::group_norm_train;
 
 /// A k×k convolution with `stride` and `dilation`, padded so that stride 1 keeps the size.
 /// Padding is explicit: burn's `Same` ignores dilation.
@@ -71,6 +72,25 @@ impl Norm {
     /// # Shapes
     /// `[B, C, H, W]` → `[B, C, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        if x.is_autodiff() {
+            let host = if let Some(n) = &self.instance {
+                n.gamma.as_ref().zip(n.beta.as_ref()).map(|(g, b)| {
+                    (n.num_channels, n.epsilon, g.val(), b.val())
+                })
+            } else {
+                self.group.as_ref().and_then(|n| {
+                    n.gamma
+                        .as_ref()
+                        .zip(n.beta.as_ref())
+                        .map(|(g, b)| (n.num_groups, n.epsilon, g.val(), b.val()))
+                })
+            };
+            if let Some((groups, eps, gamma, beta)) = host
+                && let Some(y) = group_norm_train(&x, groups, eps, &gamma, &beta)
+            {
+                return y;
+            }
+        }
         if on_host(&x) {
             let param = |p: &Option<burn::module::Param<Tensor<1>>>| p.as_ref().map(|p| p.val());
             let host = if let Some(n) = &self.instance {

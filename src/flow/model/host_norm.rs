@@ -3,7 +3,8 @@
 //! variance about the mean, normalise with the affine folded in) instead of burn's chain of
 //! whole-tensor operations, groups in parallel.
 //!
-//! Only the non-autodiff CPU device takes this path; training keeps burn's layers.
+//! The non-autodiff CPU device takes [`group_norm`]; training reaches [`normalise`] and
+//! [`normalise_backward`] through the differentiable operation of [`super::train_norm`].
 
 use burn::prelude::*;
 use rayon::prelude::*;
@@ -41,32 +42,47 @@ pub fn group_norm(
         )),
         _ => None,
     };
-    let per_group = c / groups * h * w;
-    let hw = h * w;
-    let mut out = vec![0f32; xv.len()];
-    out.par_chunks_mut(per_group.max(1))
-        .zip(xv.par_chunks(per_group.max(1)))
+    let affine = affine.as_ref().map(|(g, bt)| (g.as_slice(), bt.as_slice()));
+    let out = normalise(xv, [b, c, h * w], groups, epsilon, affine);
+    Some(Tensor::from_data(TensorData::new(out, [b, c, h, w]), &device))
+}
+
+/// Mean and 1/√(var + ε) of one group, accumulated in f64.
+fn stats(src: &[f32], epsilon: f64) -> (f32, f32) {
+    let n = src.len().max(1) as f64;
+    let mean = src.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let var = src
+        .iter()
+        .map(|&v| {
+            let d = v as f64 - mean;
+            d * d
+        })
+        .sum::<f64>()
+        / n;
+    (mean as f32, (1.0 / (var + epsilon).sqrt()) as f32)
+}
+
+/// The normalisation on host memory, groups in parallel.
+///
+/// # Shapes
+/// `x` `[B, C, HW]` row-major → `[B, C, HW]`; `affine` (γ, β) `[C]` each
+pub fn normalise(
+    x: &[f32],
+    [_, c, hw]: [usize; 3],
+    groups: usize,
+    epsilon: f64,
+    affine: Option<(&[f32], &[f32])>,
+) -> Vec<f32> {
+    let per_group = (c / groups * hw).max(1);
+    let mut out = vec![0f32; x.len()];
+    out.par_chunks_mut(per_group)
+        .zip(x.par_chunks(per_group))
         .enumerate()
         .for_each(|(i, (dst, src))| {
-            let n = src.len().max(1) as f64;
-            let mean = src.iter().map(|&v| v as f64).sum::<f64>() / n;
-            let var = src
-                .iter()
-                .map(|&v| {
-                    let d = v as f64 - mean;
-                    d * d
-                })
-                .sum::<f64>()
-                / n;
-            let inv = (1.0 / (var + epsilon).sqrt()) as f32;
-            let mean = mean as f32;
+            let (mean, inv) = stats(src, epsilon);
             let first_channel = (i % groups) * (c / groups);
-            for (k, (d, s)) in dst
-                .chunks_mut(hw.max(1))
-                .zip(src.chunks(hw.max(1)))
-                .enumerate()
-            {
-                let (scale, shift) = match &affine {
+            for (k, (d, s)) in dst.chunks_mut(hw.max(1)).zip(src.chunks(hw.max(1))).enumerate() {
+                let (scale, shift) = match affine {
                     Some((g, bt)) => (inv * g[first_channel + k], bt[first_channel + k]),
                     None => (inv, 0.0),
                 };
@@ -75,7 +91,73 @@ pub fn group_norm(
                 }
             }
         });
-    Some(Tensor::from_data(TensorData::new(out, [b, c, h, w]), &device))
+    out
+}
+
+/// Gradients of [`normalise`] with affine parameters: with x̂ = (x − μ)·σ⁻¹ and
+/// y = γ_c·x̂ + β_c over a group of N values,
+/// `∂L/∂x = σ⁻¹·(g − mean(g) − x̂·mean(g·x̂))` where g = γ_c·∂L/∂y,
+/// `∂L/∂γ_c = Σ ∂L/∂y·x̂`, `∂L/∂β_c = Σ ∂L/∂y` (sums over images and pixels).
+///
+/// # Shapes
+/// `x`, `dy` `[B, C, HW]` → (`dx` `[B, C, HW]`, `dγ` `[C]`, `dβ` `[C]`)
+pub fn normalise_backward(
+    x: &[f32],
+    dy: &[f32],
+    [_, c, hw]: [usize; 3],
+    groups: usize,
+    epsilon: f64,
+    gamma: &[f32],
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let cg = c / groups;
+    let per_group = (cg * hw).max(1);
+    let mut dx = vec![0f32; x.len()];
+    // Per (image, group): the group's channels' (dγ, dβ) partial sums.
+    let partial: Vec<(Vec<f32>, Vec<f32>)> = dx
+        .par_chunks_mut(per_group)
+        .zip(x.par_chunks(per_group).zip(dy.par_chunks(per_group)))
+        .enumerate()
+        .map(|(i, (dst, (src, gsrc)))| {
+            let (mean, inv) = stats(src, epsilon);
+            let first = (i % groups) * cg;
+            let (mut dg, mut db) = (vec![0f32; cg], vec![0f32; cg]);
+            let (mut s1, mut s2) = (0f64, 0f64);
+            for k in 0..cg {
+                let (xs, gs) = (&src[k * hw..(k + 1) * hw], &gsrc[k * hw..(k + 1) * hw]);
+                let (mut a, mut bsum) = (0f64, 0f64);
+                for (&v, &g) in xs.iter().zip(gs) {
+                    let xh = (v - mean) * inv;
+                    a += (g * xh) as f64;
+                    bsum += g as f64;
+                }
+                dg[k] = a as f32;
+                db[k] = bsum as f32;
+                let gam = gamma[first + k] as f64;
+                s1 += gam * bsum;
+                s2 += gam * a;
+            }
+            let n = (cg * hw).max(1) as f64;
+            let (m1, m2) = ((s1 / n) as f32, (s2 / n) as f32);
+            for k in 0..cg {
+                let gam = gamma[first + k];
+                let (xs, gs) = (&src[k * hw..(k + 1) * hw], &gsrc[k * hw..(k + 1) * hw]);
+                for ((d, &v), &g) in dst[k * hw..(k + 1) * hw].iter_mut().zip(xs).zip(gs) {
+                    let xh = (v - mean) * inv;
+                    *d = inv * (gam * g - m1 - xh * m2);
+                }
+            }
+            (dg, db)
+        })
+        .collect();
+    let (mut dgamma, mut dbeta) = (vec![0f32; c], vec![0f32; c]);
+    for (i, (dg, db)) in partial.into_iter().enumerate() {
+        let first = (i % groups) * cg;
+        for k in 0..cg {
+            dgamma[first + k] += dg[k];
+            dbeta[first + k] += db[k];
+        }
+    }
+    (dx, dgamma, dbeta)
 }
 
 #[cfg(test)]

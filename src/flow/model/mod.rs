@@ -8,6 +8,7 @@ pub mod host_conv;
 pub mod host_norm;
 pub mod mms;
 pub mod train_conv;
+pub mod train_norm;
 pub mod padder;
 pub mod update;
 pub mod upsample;
