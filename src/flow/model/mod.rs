@@ -12,6 +12,7 @@ pub mod train_norm;
 pub mod padder;
 pub mod update;
 pub mod upsample;
+pub mod upsample_host;
 
 pub use config::{MmsConfig, NormKind};
 pub use mms::Mms;

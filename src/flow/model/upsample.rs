@@ -6,10 +6,25 @@ use burn::tensor::activation::softmax;
 use burn::tensor::module::unfold4d;
 use burn::tensor::ops::UnfoldOptions;
 
+use super::upsample_host::convex_upsample_host;
+
 /// # Shapes
 /// `flow` `[B, 2, H, W]` (1/8-resolution pixels), `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
 /// (full-resolution pixels). The softmax subtracts the maximum, so huge logits stay finite.
+/// On the CPU backend this runs on host memory ([`super::upsample_host`]), elsewhere as
+/// [`convex_upsample_tensor`].
 pub fn convex_upsample(flow: Tensor<4>, mask: Tensor<4>) -> Tensor<4> {
+    match convex_upsample_host(&flow, &mask) {
+        Some(up) => up,
+        None => convex_upsample_tensor(flow, mask),
+    }
+}
+
+/// The same as tensor operations, for any device.
+///
+/// # Shapes
+/// `flow` `[B, 2, H, W]`, `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
+pub fn convex_upsample_tensor(flow: Tensor<4>, mask: Tensor<4>) -> Tensor<4> {
     let [b, _, h, w] = flow.dims();
     let mask = softmax(mask.reshape([b, 1, 9, 64, h * w]), 2);
     let neighbours = unfold4d(

@@ -1,0 +1,276 @@
+//! Convex upsampling (Note S9) on host memory for the CPU backend, forward and backward, used at
+//! inference directly and in training as one autodiff operation: per cell and sub-pixel, a
+//! softmax over the 9 mask logits and the weighted sum of the 3×3 coarse neighbours (×8), written
+//! straight at full resolution — where the tensor form is a reshape, a softmax, an unfold, a
+//! product, a sum and a permutation, each with its own copy and gradient.
+//!
+//! Mask channel `k·64 + s` holds neighbour k = 3·ky + kx (offset (ky − 1, kx − 1)) of sub-pixel
+//! s = 8·i + j, as [`super::upsample::convex_upsample`] reads it.
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::NodeId;
+use burn::backend::{Autodiff, BackendTypes, Flex};
+use burn::prelude::*;
+use rayon::prelude::*;
+
+type Ad = Autodiff<Flex, NoCheckpointing>;
+type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
+type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
+
+/// The convex upsampling on the CPU backend (with or without autodiff); `None` elsewhere or for
+/// other dtypes (the caller then uses the tensor form).
+///
+/// # Shapes
+/// `flow` `[B, 2, H, W]`, `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
+pub fn convex_upsample_host(flow: &Tensor<4>, mask: &Tensor<4>) -> Option<Tensor<4>> {
+    let f32s = flow.dtype() == burn::tensor::DType::F32 && mask.dtype() == burn::tensor::DType::F32;
+    let [b, c, h, w] = flow.dims();
+    if !f32s || c != 2 || mask.dims() != [b, 576, h, w] {
+        return None;
+    }
+    if flow.is_autodiff() || mask.is_autodiff() {
+        let fp = flow.clone().try_into_primitive::<Ad>().ok()?;
+        let mp = mask.clone().try_into_primitive::<Ad>().ok()?;
+        return Some(Tensor::from_primitive::<Ad>(upsample_op(fp, mp)));
+    }
+    if flow.device() != Device::flex() {
+        return None;
+    }
+    let fv = flow.clone().into_data().try_into_vec::<f32>().ok()?;
+    let mv = mask.clone().into_data().try_into_vec::<f32>().ok()?;
+    let out = forward(&fv, &mv, [b, h, w]);
+    Some(Tensor::from_data(TensorData::new(out, [b, 2, 8 * h, 8 * w]), &flow.device()))
+}
+
+/// Softmax over the 9 logits of sub-pixel s at cell p.
+#[inline]
+fn weights(mask: &[f32], hw: usize, s: usize, p: usize) -> [f32; 9] {
+    let mut l: [f32; 9] = std::array::from_fn(|k| mask[(k * 64 + s) * hw + p]);
+    let m = l.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+    let mut sum = 0.0;
+    for v in l.iter_mut() {
+        *v = (*v - m).exp();
+        sum += *v;
+    }
+    l.map(|v| v / sum)
+}
+
+/// 8× the flow at the 9 neighbours of (y, x), zero outside the map.
+#[inline]
+fn neighbours(flow: &[f32], [h, w]: [usize; 2], y: usize, x: usize) -> [[f32; 9]; 2] {
+    std::array::from_fn(|d| {
+        std::array::from_fn(|k| {
+            let (yy, xx) = (y as isize + (k / 3) as isize - 1, x as isize + (k % 3) as isize - 1);
+            if yy < 0 || xx < 0 || yy >= h as isize || xx >= w as isize {
+                0.0
+            } else {
+                8.0 * flow[d * h * w + yy as usize * w + xx as usize]
+            }
+        })
+    })
+}
+
+/// # Shapes
+/// `flow` `[B, 2, H, W]`, `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
+fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
+    let (hw, wf) = (h * w, 8 * w);
+    let mut out = vec![0f32; b * 2 * 64 * hw];
+    // One task per image and coarse row: it owns full-resolution rows 8y..8y+8 of both channels.
+    let rows: Vec<(usize, usize)> = (0..b).flat_map(|bi| (0..h).map(move |y| (bi, y))).collect();
+    let chunks: Vec<Vec<f32>> = rows
+        .par_iter()
+        .map(|&(bi, y)| {
+            let (f, m) = (&flow[bi * 2 * hw..(bi + 1) * 2 * hw], &mask[bi * 576 * hw..(bi + 1) * 576 * hw]);
+            let mut rowbuf = vec![0f32; 2 * 8 * wf];
+            for x in 0..w {
+                let nb = neighbours(f, [h, w], y, x);
+                for s in 0..64 {
+                    let wk = weights(m, hw, s, y * w + x);
+                    let (i, j) = (s / 8, s % 8);
+                    for (d, nd) in nb.iter().enumerate() {
+                        let v: f32 = wk.iter().zip(nd).map(|(a, b)| a * b).sum();
+                        rowbuf[(d * 8 + i) * wf + 8 * x + j] = v;
+                    }
+                }
+            }
+            rowbuf
+        })
+        .collect();
+    for ((bi, y), rowbuf) in rows.into_iter().zip(chunks) {
+        for d in 0..2 {
+            for i in 0..8 {
+                let dst = ((bi * 2 + d) * 8 * h + 8 * y + i) * wf;
+                out[dst..dst + wf].copy_from_slice(&rowbuf[(d * 8 + i) * wf..(d * 8 + i + 1) * wf]);
+            }
+        }
+    }
+    out
+}
+
+/// Gradients of [`forward`] with respect to the flow and the mask logits, given the gradient
+/// `g` `[B, 2, 8H, 8W]` of the output.
+///
+/// # Shapes
+/// → (`[B, 2, H, W]`, `[B, 576, H, W]`)
+fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Vec<f32>, Vec<f32>) {
+    let (hw, wf) = (h * w, 8 * w);
+    let mut dmask = vec![0f32; b * 576 * hw];
+    // coef[b, d, k, p] = 8 Σ_s w_k(p, s) g_d(p, s): what neighbour k of cell p receives.
+    let mut coef = vec![0f32; b * 2 * 9 * hw];
+    let cells: Vec<(usize, usize)> = (0..b).flat_map(|bi| (0..hw).map(move |p| (bi, p))).collect();
+    let per_cell: Vec<([f32; 576], [f32; 18])> = cells
+        .par_iter()
+        .map(|&(bi, p)| {
+            let (f, m) = (&flow[bi * 2 * hw..(bi + 1) * 2 * hw], &mask[bi * 576 * hw..(bi + 1) * 576 * hw]);
+            let (y, x) = (p / w, p % w);
+            let nb = neighbours(f, [h, w], y, x);
+            let mut dm = [0f32; 576];
+            let mut cf = [0f32; 18];
+            for s in 0..64 {
+                let wk = weights(m, hw, s, p);
+                let (i, j) = (s / 8, s % 8);
+                let gd: [f32; 2] =
+                    std::array::from_fn(|d| g[((bi * 2 + d) * 8 * h + 8 * y + i) * wf + 8 * x + j]);
+                // t_k = ∂L/∂w_k; softmax: ∂L/∂l_k = w_k (t_k − Σ w t).
+                let t: [f32; 9] = std::array::from_fn(|k| gd[0] * nb[0][k] + gd[1] * nb[1][k]);
+                let wt: f32 = wk.iter().zip(&t).map(|(a, b)| a * b).sum();
+                for k in 0..9 {
+                    dm[k * 64 + s] = wk[k] * (t[k] - wt);
+                    cf[k] += 8.0 * wk[k] * gd[0];
+                    cf[9 + k] += 8.0 * wk[k] * gd[1];
+                }
+            }
+            (dm, cf)
+        })
+        .collect();
+    for ((bi, p), (dm, cf)) in cells.into_iter().zip(per_cell) {
+        for (ch, v) in dm.iter().enumerate() {
+            dmask[(bi * 576 + ch) * hw + p] = *v;
+        }
+        for d in 0..2 {
+            for k in 0..9 {
+                coef[((bi * 2 + d) * 9 + k) * hw + p] = cf[d * 9 + k];
+            }
+        }
+    }
+    // ∂L/∂flow(q) = Σ_k coef_k(q − offset_k): gathered, so every cell is written once.
+    let mut dflow = vec![0f32; b * 2 * hw];
+    dflow
+        .par_chunks_mut(hw.max(1))
+        .enumerate()
+        .for_each(|(bd, dst)| {
+            let src = &coef[bd * 9 * hw..(bd + 1) * 9 * hw];
+            for (q, v) in dst.iter_mut().enumerate() {
+                let (qy, qx) = ((q / w) as isize, (q % w) as isize);
+                let mut acc = 0.0;
+                for k in 0..9 {
+                    let (py, px) = (qy - (k / 3) as isize + 1, qx - (k % 3) as isize + 1);
+                    if py >= 0 && px >= 0 && py < h as isize && px < w as isize {
+                        acc += src[k * hw + py as usize * w + px as usize];
+                    }
+                }
+                *v = acc;
+            }
+        });
+    (dflow, dmask)
+}
+
+fn host(t: FlexT) -> (Vec<f32>, [usize; 4]) {
+    let t = Tensor::<4>::from_primitive::<Flex>(t);
+    let dims = t.dims();
+    (t.into_data().try_into_vec::<f32>().unwrap_or_default(), dims)
+}
+
+fn flex(v: Vec<f32>, shape: [usize; 4]) -> FlexT {
+    match Tensor::<4>::from_data(TensorData::new(v, shape), &Device::flex()).try_into_primitive::<Flex>() {
+        Ok(p) => p,
+        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
+    }
+}
+
+fn upsample_op(flow: AdT, mask: AdT) -> AdT {
+    #[derive(Debug)]
+    struct HostUpsample;
+
+    impl Backward<Flex, 2> for HostUpsample {
+        type State = (NodeId, NodeId);
+
+        fn backward(
+            self,
+            ops: Ops<Self::State, 2>,
+            grads: &mut Gradients,
+            checkpointer: &mut Checkpointer,
+        ) {
+            let [node_f, node_m] = ops.parents;
+            let (g, _) = host(grads.consume::<Flex>(&ops.node));
+            let (f_state, m_state) = ops.state;
+            let (f, [b, _, h, w]) = host(checkpointer.retrieve_node_output(f_state));
+            let (m, _) = host(checkpointer.retrieve_node_output(m_state));
+            let (dflow, dmask) = backward(&f, &m, &g, [b, h, w]);
+            if let Some(node) = node_f {
+                grads.register::<Flex>(node.id, flex(dflow, [b, 2, h, w]));
+            }
+            if let Some(node) = node_m {
+                grads.register::<Flex>(node.id, flex(dmask, [b, 576, h, w]));
+            }
+        }
+    }
+
+    let run = |flow: &AdT, mask: &AdT| {
+        let (f, [b, _, h, w]) = host(flow.primitive().clone());
+        let (m, _) = host(mask.primitive().clone());
+        flex(forward(&f, &m, [b, h, w]), [b, 2, 8 * h, 8 * w])
+    };
+    match HostUpsample
+        .prepare::<NoCheckpointing>([flow.node(), mask.node()])
+        .compute_bound()
+        .stateful()
+    {
+        OpsKind::Tracked(mut prep) => {
+            let f_state = prep.checkpoint(&flow);
+            let m_state = prep.checkpoint(&mask);
+            let y = run(&flow, &mask);
+            prep.finish((f_state, m_state), y)
+        }
+        OpsKind::UnTracked(prep) => prep.finish(run(&flow, &mask)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::upsample::convex_upsample_tensor;
+    use super::*;
+    use burn::tensor::Distribution;
+
+    /// Output and both gradients equal the tensor form's, borders included, and the plain
+    /// (inference) form gives the same output.
+    #[test]
+    fn host_upsampling_matches_the_tensor_form() {
+        let dev = Device::flex().autodiff();
+        let (b, h, w) = (2, 3, 5);
+        let f0 = Tensor::<4>::random([b, 2, h, w], Distribution::Normal(0.0, 2.0), &dev);
+        let m0 = Tensor::<4>::random([b, 576, h, w], Distribution::Normal(0.0, 3.0), &dev);
+        let weights = Tensor::<4>::random([b, 2, 8 * h, 8 * w], Distribution::Normal(0.0, 1.0), &dev);
+        let run = |host: bool| {
+            let (f, m) = (f0.clone().detach().require_grad(), m0.clone().detach().require_grad());
+            let y = if host {
+                convex_upsample_host(&f, &m).expect("host path")
+            } else {
+                convex_upsample_tensor(f.clone(), m.clone())
+            };
+            let g = (y.clone() * weights.clone()).sum().backward();
+            (y.inner(), f.grad(&g).expect("flow gradient"), m.grad(&g).expect("mask gradient"))
+        };
+        let (ya, fa, ma) = run(true);
+        let (yb, fb, mb) = run(false);
+        let d = |a: Tensor<4>, b: Tensor<4>| -> f32 { (a - b).abs().max().into_scalar() };
+        assert!(d(ya.clone(), yb) < 1e-4, "output");
+        assert!(d(fa, fb) < 1e-3, "flow gradient");
+        assert!(d(ma, mb) < 1e-4, "mask gradient");
+        let plain = convex_upsample_host(&f0.inner(), &m0.inner()).expect("inference path");
+        assert!(d(plain, ya) < 1e-5, "inference output");
+    }
+}
