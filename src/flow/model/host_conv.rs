@@ -178,7 +178,11 @@ impl Geometry {
 
     /// A 1×1, stride-1, unpadded convolution reads its input as the patch matrix.
     fn is_pointwise(&self) -> bool {
-        self.kh == 1 && self.kw == 1 && self.stride == [1, 1] && self.pad == [0, 0]
+        self.kh == 1
+            && self.kw == 1
+            && self.stride == [1, 1]
+            && self.pad == [0, 0]
+            && (self.ho, self.wo) == (self.h, self.w)
     }
 
     /// The convolution of `x` `[B, Cin, H, W]` by `w` `[Cout, Cin, kh, kw]` (+ `bias`), as a
@@ -440,6 +444,8 @@ mod tests {
             (6, 5, 3, 1, 18, (18, 18, 18, 18), 4, 6, 2, false),
             (9, 4, 1, 1, 1, (0, 0, 0, 0), 6, 8, 2, true),
             (9, 4, 1, 2, 1, (0, 0, 0, 0), 7, 9, 1, true),
+            // 1×1 with end padding only: not a plain product of the input.
+            (5, 7, 1, 1, 1, (0, 2, 0, 1), 9, 11, 2, true),
             (2, 3, 7, 1, 1, (3, 3, 3, 3), 3, 4, 1, true),
             (3, 4, 3, 1, 1, (0, 2, 1, 0), 6, 5, 1, true),
             (2, 3, 3, 3, 2, (0, 0, 0, 0), 12, 14, 1, false),

@@ -1,14 +1,14 @@
-//! The stride-1 convolutions of training (every 3×3 layer of Notes S9–S10) as one autodiff
-//! operation on the CPU backend whose forward and backward passes run the host kernels of
-//! [`super::host_conv`]:
+//! The convolutions of training (every layer of Notes S9–S10) as one autodiff operation on the
+//! CPU backend whose forward and backward passes run the host kernels of [`super::host_conv`]:
 //!
 //! - forward: `y = W ⋆ x` by channel-first unfolding and one product per band of rows;
 //! - `∂L/∂x = W̃ ⋆ ∂L/∂y`, with `W̃[c, o] = W[o, c]` flipped in both axes and the padding
-//!   mirrored (`d·(k−1) − p`): for stride 1 the transposed convolution is a convolution;
+//!   mirrored (`d·(k−1) − p`): the transposed convolution is a convolution (for stride s, of the
+//!   output gradient spread onto the stride-1 grid with zeros between);
 //! - `∂L/∂W = Σ ∂L/∂y(band) · cols(band)ᵀ`, the forward unfolding reused.
 //!
-//! The bias is added after, as an ordinary differentiable broadcast. Strided or grouped
-//! convolutions, other devices and other dtypes keep burn's `conv2d`.
+//! The bias is added after, as an ordinary differentiable broadcast. Grouped convolutions,
+//! padding wider than the kernel's reach, other devices and other dtypes keep burn's `conv2d`.
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
@@ -43,8 +43,7 @@ pub fn conv2d_train(
     let [dy, dx] = options.dilation;
     let mirrored = options.padding[0].0.max(options.padding[0].1) <= dy * (kh - 1)
         && options.padding[1].0.max(options.padding[1].1) <= dx * (kw - 1);
-    let suitable = options.stride == [1, 1]
-        && options.groups == 1
+    let suitable = options.groups == 1
         && mirrored
         && x.dims()[1] == weight.dims()[1]
         && x.dtype() == burn::tensor::DType::F32
@@ -81,6 +80,44 @@ fn primitive(t: Tensor<4>) -> FlexT {
     }
 }
 
+/// The output gradient of a strided convolution spread back onto the stride-1 grid, zeros in
+/// between, so that its transposed convolution is again a convolution.
+///
+/// # Shapes
+/// `[B, C, H', W']` → `[B, C, (H' − 1)·sy + 1, (W' − 1)·sx + 1]`
+fn stuff(g: Tensor<4>, [sy, sx]: [usize; 2]) -> Tensor<4> {
+    if sy == 1 && sx == 1 {
+        return g;
+    }
+    let [b, c, ho, wo] = g.dims();
+    let (h1, w1) = ((ho.max(1) - 1) * sy + 1, (wo.max(1) - 1) * sx + 1);
+    let device = g.device();
+    let Ok(v) = g.clone().into_data().try_into_vec::<f32>() else {
+        // Not f32: spread with tensor operations.
+        let z = Tensor::<4>::zeros([b, c, h1, w1], &device);
+        let mut out = z;
+        for y in 0..ho {
+            for x in 0..wo {
+                let cell = g.clone().slice([0..b, 0..c, y..y + 1, x..x + 1]);
+                out = out.slice_assign(
+                    [0..b, 0..c, y * sy..y * sy + 1, x * sx..x * sx + 1],
+                    cell,
+                );
+            }
+        }
+        return out;
+    };
+    let mut out = vec![0f32; b * c * h1 * w1];
+    for (plane, src) in out.chunks_exact_mut(h1 * w1).zip(v.chunks_exact(ho * wo)) {
+        for y in 0..ho {
+            for x in 0..wo {
+                plane[y * sy * w1 + x * sx] = src[y * wo + x];
+            }
+        }
+    }
+    Tensor::from_data(TensorData::new(out, [b, c, h1, w1]), &device)
+}
+
 /// The bias-free convolution as one tracked operation.
 fn host_conv_op(
     x: AdT,
@@ -106,19 +143,30 @@ fn host_conv_op(
             let w = plain(checkpointer.retrieve_node_output(w_state));
             let [_, _, kh, kw] = w.dims();
             if let Some(node) = node_x {
+                let [_, _, h, w_in] = x.dims();
                 let [dy, dx] = options.dilation;
                 let (py, px) = (dy * (kh - 1), dx * (kw - 1));
+                // Input rows and columns past the last window (stride > 1) get zero gradient
+                // from extra end padding.
+                let [sy, sx] = options.stride;
+                let extra = |size: usize, (p0, p1): (usize, usize), span: usize, s: usize| {
+                    (size + p0 + p1 - span) % s
+                };
+                let (ey, ex) = (
+                    extra(h, options.padding[0], py + 1, sy),
+                    extra(w_in, options.padding[1], px + 1, sx),
+                );
                 let mirrored = ConvOptions::new_with_padding(
                     [1, 1],
                     [
-                        (py - options.padding[0].0, py - options.padding[0].1),
-                        (px - options.padding[1].0, px - options.padding[1].1),
+                        (py - options.padding[0].0, py - options.padding[0].1 + ey),
+                        (px - options.padding[1].0, px - options.padding[1].1 + ex),
                     ],
                     options.dilation,
                     1,
                 );
                 let wt = w.clone().swap_dims(0, 1).flip([2, 3]); // [Cin, Cout, kh, kw]
-                let dx = conv2d_forward(grad.clone(), wt, None, mirrored);
+                let dx = conv2d_forward(stuff(grad.clone(), [sy, sx]), wt, None, mirrored);
                 grads.register::<Flex>(node.id, primitive(dx));
             }
             if let Some(node) = node_w {
@@ -164,11 +212,10 @@ mod tests {
     use burn::tensor::Distribution;
 
     /// Output and gradients (input, weight, bias) equal those of burn's convolution, for a
-    /// padded 3×3, a dilated one wider than the map, a 7×7 and a 1×1, with a loss that weights
-    /// every output differently.
+    /// padded 3×3, a dilated one wider than the map, a 7×7, a 1×1 and strided ones, with a loss
+    /// that weights every output differently.
     #[test]
     fn host_training_convolution_matches_burn() {
-        let dev = Device::flex().autodiff();
         // (cin, cout, k, dilation, pad, h, w, batch)
         for (cin, cout, k, d, p, h, w, b) in [
             (5, 7, 3, 1, 1, 9, 11, 2),
@@ -177,12 +224,24 @@ mod tests {
             (9, 5, 1, 1, 0, 6, 8, 2),
             (16, 24, 3, 1, 1, 40, 52, 1),
         ] {
+            check(cin, cout, k, d, p, 1, h, w, b);
+        }
+        // Strided: the stem, the downsampling 3×3 and the 1×1 projection, on even and odd sizes.
+        for (cin, cout, k, p, h, w) in [(3, 8, 7, 3, 16, 20), (6, 9, 3, 1, 11, 14), (5, 7, 1, 0, 9, 12)] {
+            check(cin, cout, k, 1, p, 2, h, w, 2);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn check(cin: usize, cout: usize, k: usize, d: usize, p: usize, s: usize, h: usize, w: usize, b: usize) {
+        let dev = Device::flex().autodiff();
+        {
             let x0 = Tensor::<4>::random([b, cin, h, w], Distribution::Normal(0.0, 1.0), &dev);
             let w0 = Tensor::<4>::random([cout, cin, k, k], Distribution::Normal(0.0, 0.3), &dev);
             let b0 = Tensor::<1>::random([cout], Distribution::Normal(0.0, 1.0), &dev);
-            let opts = ConvOptions::new([1, 1], [p, p], [d, d], 1);
+            let opts = ConvOptions::new([s, s], [p, p], [d, d], 1);
             let weights = Tensor::<4>::random(
-                [b, cout, h + 2 * p - d * (k - 1), w + 2 * p - d * (k - 1)],
+                [b, cout, (h + 2 * p - d * (k - 1) - 1) / s + 1, (w + 2 * p - d * (k - 1) - 1) / s + 1],
                 Distribution::Normal(0.0, 1.0),
                 &dev,
             );
@@ -211,7 +270,7 @@ mod tests {
             let close = |a: Tensor<4>, b: Tensor<4>, what: &str| {
                 let scale: f32 = b.clone().abs().max().into_scalar();
                 let diff: f32 = (a - b).abs().max().into_scalar();
-                assert!(diff <= 1e-4 * scale.max(1.0), "{cin}->{cout} k{k} d{d}: {what} off by {diff}");
+                assert!(diff <= 1e-4 * scale.max(1.0), "{cin}->{cout} k{k} d{d} s{s}: {what} off by {diff}");
             };
             close(ya, yb, "output");
             close(gxa, gxb, "input gradient");
