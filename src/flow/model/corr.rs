@@ -12,6 +12,8 @@ use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
 use rayon::prelude::*;
 
+use super::corr_lookup_op::lookup_level_train;
+
 /// One pyramid level `[B·H·W, H/2^l, W/2^l]`.
 enum Level {
     /// A tensor, differentiable.
@@ -135,7 +137,24 @@ impl CorrPyramid {
         self.lookup_graph(&levels, coords)
     }
 
+    /// Under autodiff on the CPU backend, one host operation per level
+    /// ([`super::corr_lookup_op`]); otherwise [`Self::lookup_tensor`].
     fn lookup_graph(&self, levels: &[Tensor<3>], coords: Tensor<4>) -> Tensor<4> {
+        if levels.iter().any(|l| l.is_autodiff()) {
+            let host: Option<Vec<Tensor<4>>> = levels
+                .iter()
+                .enumerate()
+                .map(|(l, level)| lookup_level_train(level, &coords, self.radius, l))
+                .collect();
+            if let Some(windows) = host {
+                return Tensor::cat(windows, 1); // [B, L·k², H, W]
+            }
+        }
+        self.lookup_tensor(levels, coords)
+    }
+
+    /// The lookup as tensor operations, differentiable on any device.
+    fn lookup_tensor(&self, levels: &[Tensor<3>], coords: Tensor<4>) -> Tensor<4> {
         let (b, h, w, r) = (self.batch, self.height, self.width, self.radius);
         let n = b * h * w;
         let c = coords.permute([0, 2, 3, 1]).reshape([n, 2]); // [N, 2] = (x, y)
@@ -370,6 +389,44 @@ mod tests {
         assert_eq!(a.dims(), [b, 3 * 25, h, w]);
         let diff: f32 = (a - g).abs().max().into_scalar();
         assert!(diff < 1e-5, "max difference {diff}");
+    }
+
+    /// Under autodiff, the host operation gives the tensor lookup's windows and the same
+    /// gradients with respect to both feature maps, positions outside the levels included.
+    #[test]
+    fn training_lookup_matches_the_tensor_lookup_and_its_gradients() {
+        let dev = Device::flex().autodiff();
+        let (b, c, h, w) = (2, 4, 6, 8);
+        let f10 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let f20 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let coords = Tensor::<4>::random([b, 2, h, w], Distribution::Uniform(-6.0, 14.0), &dev);
+        let weights =
+            Tensor::<4>::random([b, 3 * 25, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let run = |host: bool| {
+            let (f1, f2) = (f10.clone().detach().require_grad(), f20.clone().detach().require_grad());
+            let pyr = CorrPyramid::graph(f1.clone(), f2.clone(), 3, 2);
+            let levels: Vec<Tensor<3>> = pyr
+                .levels
+                .iter()
+                .map(|l| match l {
+                    Level::Graph(t) => t.clone(),
+                    Level::Host(_) => unreachable!("graph levels"),
+                })
+                .collect();
+            let out = if host {
+                pyr.lookup_graph(&levels, coords.clone())
+            } else {
+                pyr.lookup_tensor(&levels, coords.clone())
+            };
+            let g = (out.clone() * weights.clone()).sum().backward();
+            (out.inner(), f1.grad(&g).expect("f1 gradient"), f2.grad(&g).expect("f2 gradient"))
+        };
+        let (oa, a1, a2) = run(true);
+        let (ob, b1, b2) = run(false);
+        let d = |x: Tensor<4>, y: Tensor<4>| -> f32 { (x - y).abs().max().into_scalar() };
+        assert!(d(oa, ob) < 1e-5, "windows");
+        assert!(d(a1, b1) < 1e-4, "f1 gradient");
+        assert!(d(a2, b2) < 1e-4, "f2 gradient");
     }
 
     #[test]

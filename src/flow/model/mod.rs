@@ -3,6 +3,7 @@
 pub mod blocks;
 pub mod config;
 pub mod corr;
+pub mod corr_lookup_op;
 pub mod encoder;
 pub mod host_conv;
 pub mod host_norm;

@@ -1,0 +1,200 @@
+//! The correlation lookup of training (Note S9) as one autodiff operation per pyramid level on
+//! the CPU backend: the forward pass reads the (2r+1)² bilinear window around every pixel's
+//! scaled position directly, and the backward pass adds the window's gradient back onto the
+//! four corners of every tap, each pixel into its own correlation map (so pixels run in
+//! parallel without conflicts). The positions carry no gradient, as in RAFT.
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::{Autodiff, BackendTypes, Flex};
+use burn::prelude::*;
+use rayon::prelude::*;
+
+type Ad = Autodiff<Flex, NoCheckpointing>;
+type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
+type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
+
+/// Sizes of one lookup.
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    /// Images, rows and columns of the 1/8-resolution grid.
+    b: usize,
+    h: usize,
+    w: usize,
+    /// Level size.
+    hl: usize,
+    wl: usize,
+    r: usize,
+    /// 2^−level: pixel positions to level positions.
+    scale: f32,
+}
+
+impl Window {
+    fn k(&self) -> usize {
+        2 * self.r + 1
+    }
+
+    /// The top-left integer tap and the fractional offsets of pixel n.
+    fn anchor(&self, coords: &[f32], n: usize) -> (i64, i64, f32, f32) {
+        let hw = self.h * self.w;
+        let (bi, p) = (n / hw, n % hw);
+        let x = coords[(2 * bi) * hw + p] * self.scale;
+        let y = coords[(2 * bi + 1) * hw + p] * self.scale;
+        let (xf, yf) = (x.floor(), y.floor());
+        // Saturating casts, kept far from overflow when offsets are added.
+        let bound = 1i64 << 40;
+        (
+            (xf as i64).clamp(-bound, bound) - self.r as i64,
+            (yf as i64).clamp(-bound, bound) - self.r as i64,
+            x - xf,
+            y - yf,
+        )
+    }
+
+    fn inside(&self, yy: i64, xx: i64) -> Option<usize> {
+        (yy >= 0 && xx >= 0 && (yy as usize) < self.hl && (xx as usize) < self.wl)
+            .then(|| yy as usize * self.wl + xx as usize)
+    }
+
+    /// # Shapes
+    /// `level` `[B·H·W, hl, wl]`, `coords` `[B, 2, H, W]` → `[B, (2r+1)², H, W]`
+    fn forward(&self, level: &[f32], coords: &[f32]) -> Vec<f32> {
+        let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
+        let mut windows = vec![0f32; self.b * hw * k * k];
+        windows.par_chunks_mut(k * k).enumerate().for_each(|(n, dst)| {
+            let (x0, y0, fx, fy) = self.anchor(coords, n);
+            let map = &level[n * m..(n + 1) * m];
+            let at = |yy: i64, xx: i64| self.inside(yy, xx).map_or(0.0, |i| map[i]);
+            let (gx, gy) = (1.0 - fx, 1.0 - fy);
+            for i in 0..k {
+                let yy = y0 + i as i64;
+                for j in 0..k {
+                    let xx = x0 + j as i64;
+                    dst[i * k + j] = at(yy, xx) * (gy * gx)
+                        + at(yy, xx + 1) * (gy * fx)
+                        + at(yy + 1, xx) * (fy * gx)
+                        + at(yy + 1, xx + 1) * (fy * fx);
+                }
+            }
+        });
+        // Pixel-major → channel-major per image.
+        let mut out = vec![0f32; windows.len()];
+        for bi in 0..self.b {
+            let src = &windows[bi * hw * k * k..(bi + 1) * hw * k * k];
+            let dst = &mut out[bi * k * k * hw..(bi + 1) * k * k * hw];
+            for (p, row) in src.chunks_exact(k * k).enumerate() {
+                for (c, v) in row.iter().enumerate() {
+                    dst[c * hw + p] = *v;
+                }
+            }
+        }
+        out
+    }
+
+    /// Gradient of the level given the gradient `g` `[B, (2r+1)², H, W]` of the window.
+    ///
+    /// # Shapes
+    /// → `[B·H·W, hl, wl]`
+    fn backward(&self, coords: &[f32], g: &[f32]) -> Vec<f32> {
+        let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
+        let mut dlevel = vec![0f32; self.b * hw * m];
+        dlevel.par_chunks_mut(m.max(1)).enumerate().for_each(|(n, map)| {
+            let (bi, p) = (n / hw, n % hw);
+            let (x0, y0, fx, fy) = self.anchor(coords, n);
+            let (gx, gy) = (1.0 - fx, 1.0 - fy);
+            let mut add = |yy: i64, xx: i64, v: f32| {
+                if let Some(i) = self.inside(yy, xx) {
+                    map[i] += v;
+                }
+            };
+            for i in 0..k {
+                let yy = y0 + i as i64;
+                for j in 0..k {
+                    let xx = x0 + j as i64;
+                    let gv = g[(bi * k * k + i * k + j) * hw + p];
+                    if gv == 0.0 {
+                        continue;
+                    }
+                    add(yy, xx, gv * (gy * gx));
+                    add(yy, xx + 1, gv * (gy * fx));
+                    add(yy + 1, xx, gv * (fy * gx));
+                    add(yy + 1, xx + 1, gv * (fy * fx));
+                }
+            }
+        });
+        dlevel
+    }
+}
+
+/// The window lookup of one level under autodiff on the CPU backend; `None` elsewhere (the
+/// caller then uses the tensor form).
+///
+/// # Shapes
+/// `level` `[B·H·W, hl, wl]`, `coords` `[B, 2, H, W]` (no gradient) → `[B, (2r+1)², H, W]`
+pub fn lookup_level_train(level: &Tensor<3>, coords: &Tensor<4>, radius: usize, l: usize) -> Option<Tensor<4>> {
+    let [b, two, h, w] = coords.dims();
+    let [n, hl, wl] = level.dims();
+    if two != 2 || n != b * h * w || level.dtype() != burn::tensor::DType::F32 {
+        return None;
+    }
+    let lp = level.clone().try_into_primitive::<Ad>().ok()?;
+    let plain = if coords.is_autodiff() { coords.clone().inner() } else { coords.clone() };
+    let c = plain.into_data().try_into_vec::<f32>().ok()?;
+    let win = Window { b, h, w, hl, wl, r: radius, scale: 1.0 / (1u64 << l) as f32 };
+    Some(Tensor::from_primitive::<Ad>(lookup_op(lp, c, win)))
+}
+
+fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
+    #[derive(Debug)]
+    struct HostLookup;
+
+    impl Backward<Flex, 1> for HostLookup {
+        type State = (Vec<f32>, Window);
+
+        fn backward(self, ops: Ops<Self::State, 1>, grads: &mut Gradients, _: &mut Checkpointer) {
+            let [node] = ops.parents;
+            let g = Tensor::<4>::from_primitive::<Flex>(grads.consume::<Flex>(&ops.node));
+            let (coords, win) = ops.state;
+            if let Some(node) = node {
+                let gv = g.into_data().try_into_vec::<f32>().unwrap_or_default();
+                let d = win.backward(&coords, &gv);
+                let shape = [win.b * win.h * win.w, win.hl, win.wl];
+                grads.register::<Flex>(node.id, flex3(d, shape));
+            }
+        }
+    }
+
+    let run = |level: &AdT| {
+        let t = Tensor::<3>::from_primitive::<Flex>(level.primitive().clone());
+        let v = t.into_data().try_into_vec::<f32>().unwrap_or_default();
+        let k = win.k();
+        flex4(win.forward(&v, &coords), [win.b, k * k, win.h, win.w])
+    };
+    match HostLookup
+        .prepare::<NoCheckpointing>([level.node()])
+        .compute_bound()
+        .stateful()
+    {
+        OpsKind::Tracked(prep) => {
+            let y = run(&level);
+            prep.finish((coords, win), y)
+        }
+        OpsKind::UnTracked(prep) => prep.finish(run(&level)),
+    }
+}
+
+fn flex3(v: Vec<f32>, shape: [usize; 3]) -> FlexT {
+    match Tensor::<3>::from_data(TensorData::new(v, shape), &Device::flex()).try_into_primitive::<Flex>() {
+        Ok(p) => p,
+        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
+    }
+}
+
+fn flex4(v: Vec<f32>, shape: [usize; 4]) -> FlexT {
+    match Tensor::<4>::from_data(TensorData::new(v, shape), &Device::flex()).try_into_primitive::<Flex>() {
+        Ok(p) => p,
+        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
+    }
+}
