@@ -74,9 +74,10 @@ impl Norm {
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         if x.is_autodiff() {
             let host = if let Some(n) = &self.instance {
-                n.gamma.as_ref().zip(n.beta.as_ref()).map(|(g, b)| {
-                    (n.num_channels, n.epsilon, g.val(), b.val())
-                })
+                n.gamma
+                    .as_ref()
+                    .zip(n.beta.as_ref())
+                    .map(|(g, b)| (n.num_channels, n.epsilon, g.val(), b.val()))
             } else {
                 self.group.as_ref().and_then(|n| {
                     n.gamma
@@ -102,7 +103,7 @@ impl Norm {
                     .map(|n| (n.num_groups, n.epsilon, param(&n.gamma), param(&n.beta)))
             };
             if let Some((groups, eps, gamma, beta)) = host
-                && x.dims()[1] % groups.max(1) == 0
+                && x.dims()[1].is_multiple_of(groups.max(1))
             {
                 // Falls back to the layer below only for data that is not f32.
                 if let Some(y) = group_norm(x.clone(), groups, eps, gamma, beta) {

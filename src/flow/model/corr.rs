@@ -184,7 +184,10 @@ fn host_pyramid(
     let hw = h * w;
     let mut level = vec![0f32; b * hw * hw];
     for bi in 0..b {
-        let (a, bb) = (&f1[bi * c * hw..(bi + 1) * c * hw], &f2[bi * c * hw..(bi + 1) * c * hw]);
+        let (a, bb) = (
+            &f1[bi * c * hw..(bi + 1) * c * hw],
+            &f2[bi * c * hw..(bi + 1) * c * hw],
+        );
         let dst = &mut level[bi * hw * hw..(bi + 1) * hw * hw];
         if hw == 0 {
             continue;
@@ -400,10 +403,12 @@ mod tests {
         let f10 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
         let f20 = Tensor::<4>::random([b, c, h, w], Distribution::Normal(0.0, 1.0), &dev);
         let coords = Tensor::<4>::random([b, 2, h, w], Distribution::Uniform(-6.0, 14.0), &dev);
-        let weights =
-            Tensor::<4>::random([b, 3 * 25, h, w], Distribution::Normal(0.0, 1.0), &dev);
+        let weights = Tensor::<4>::random([b, 3 * 25, h, w], Distribution::Normal(0.0, 1.0), &dev);
         let run = |host: bool| {
-            let (f1, f2) = (f10.clone().detach().require_grad(), f20.clone().detach().require_grad());
+            let (f1, f2) = (
+                f10.clone().detach().require_grad(),
+                f20.clone().detach().require_grad(),
+            );
             let pyr = CorrPyramid::graph(f1.clone(), f2.clone(), 3, 2);
             let levels: Vec<Tensor<3>> = pyr
                 .levels
@@ -419,7 +424,11 @@ mod tests {
                 pyr.lookup_tensor(&levels, coords.clone())
             };
             let g = (out.clone() * weights.clone()).sum().backward();
-            (out.inner(), f1.grad(&g).expect("f1 gradient"), f2.grad(&g).expect("f2 gradient"))
+            (
+                out.inner(),
+                f1.grad(&g).expect("f1 gradient"),
+                f2.grad(&g).expect("f2 gradient"),
+            )
         };
         let (oa, a1, a2) = run(true);
         let (ob, b1, b2) = run(false);

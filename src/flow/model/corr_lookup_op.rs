@@ -4,17 +4,15 @@
 //! four corners of every tap, each pixel into its own correlation map (so pixels run in
 //! parallel without conflicts). The positions carry no gradient, as in RAFT.
 
+use burn::backend::Flex;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::backend::{Autodiff, BackendTypes, Flex};
 use burn::prelude::*;
 use rayon::prelude::*;
 
-type Ad = Autodiff<Flex, NoCheckpointing>;
-type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
-type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
+use super::flex_bridge::{Ad, AdT, from_host, to_host};
 
 /// Sizes of one lookup.
 #[derive(Clone, Copy, Debug)]
@@ -63,22 +61,25 @@ impl Window {
     fn forward(&self, level: &[f32], coords: &[f32]) -> Vec<f32> {
         let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
         let mut windows = vec![0f32; self.b * hw * k * k];
-        windows.par_chunks_mut(k * k).enumerate().for_each(|(n, dst)| {
-            let (x0, y0, fx, fy) = self.anchor(coords, n);
-            let map = &level[n * m..(n + 1) * m];
-            let at = |yy: i64, xx: i64| self.inside(yy, xx).map_or(0.0, |i| map[i]);
-            let (gx, gy) = (1.0 - fx, 1.0 - fy);
-            for i in 0..k {
-                let yy = y0 + i as i64;
-                for j in 0..k {
-                    let xx = x0 + j as i64;
-                    dst[i * k + j] = at(yy, xx) * (gy * gx)
-                        + at(yy, xx + 1) * (gy * fx)
-                        + at(yy + 1, xx) * (fy * gx)
-                        + at(yy + 1, xx + 1) * (fy * fx);
+        windows
+            .par_chunks_mut(k * k)
+            .enumerate()
+            .for_each(|(n, dst)| {
+                let (x0, y0, fx, fy) = self.anchor(coords, n);
+                let map = &level[n * m..(n + 1) * m];
+                let at = |yy: i64, xx: i64| self.inside(yy, xx).map_or(0.0, |i| map[i]);
+                let (gx, gy) = (1.0 - fx, 1.0 - fy);
+                for i in 0..k {
+                    let yy = y0 + i as i64;
+                    for j in 0..k {
+                        let xx = x0 + j as i64;
+                        dst[i * k + j] = at(yy, xx) * (gy * gx)
+                            + at(yy, xx + 1) * (gy * fx)
+                            + at(yy + 1, xx) * (fy * gx)
+                            + at(yy + 1, xx + 1) * (fy * fx);
+                    }
                 }
-            }
-        });
+            });
         // Pixel-major → channel-major per image.
         let mut out = vec![0f32; windows.len()];
         for bi in 0..self.b {
@@ -100,30 +101,33 @@ impl Window {
     fn backward(&self, coords: &[f32], g: &[f32]) -> Vec<f32> {
         let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
         let mut dlevel = vec![0f32; self.b * hw * m];
-        dlevel.par_chunks_mut(m.max(1)).enumerate().for_each(|(n, map)| {
-            let (bi, p) = (n / hw, n % hw);
-            let (x0, y0, fx, fy) = self.anchor(coords, n);
-            let (gx, gy) = (1.0 - fx, 1.0 - fy);
-            let mut add = |yy: i64, xx: i64, v: f32| {
-                if let Some(i) = self.inside(yy, xx) {
-                    map[i] += v;
-                }
-            };
-            for i in 0..k {
-                let yy = y0 + i as i64;
-                for j in 0..k {
-                    let xx = x0 + j as i64;
-                    let gv = g[(bi * k * k + i * k + j) * hw + p];
-                    if gv == 0.0 {
-                        continue;
+        dlevel
+            .par_chunks_mut(m.max(1))
+            .enumerate()
+            .for_each(|(n, map)| {
+                let (bi, p) = (n / hw, n % hw);
+                let (x0, y0, fx, fy) = self.anchor(coords, n);
+                let (gx, gy) = (1.0 - fx, 1.0 - fy);
+                let mut add = |yy: i64, xx: i64, v: f32| {
+                    if let Some(i) = self.inside(yy, xx) {
+                        map[i] += v;
                     }
-                    add(yy, xx, gv * (gy * gx));
-                    add(yy, xx + 1, gv * (gy * fx));
-                    add(yy + 1, xx, gv * (fy * gx));
-                    add(yy + 1, xx + 1, gv * (fy * fx));
+                };
+                for i in 0..k {
+                    let yy = y0 + i as i64;
+                    for j in 0..k {
+                        let xx = x0 + j as i64;
+                        let gv = g[(bi * k * k + i * k + j) * hw + p];
+                        if gv == 0.0 {
+                            continue;
+                        }
+                        add(yy, xx, gv * (gy * gx));
+                        add(yy, xx + 1, gv * (gy * fx));
+                        add(yy + 1, xx, gv * (fy * gx));
+                        add(yy + 1, xx + 1, gv * (fy * fx));
+                    }
                 }
-            }
-        });
+            });
         dlevel
     }
 }
@@ -133,16 +137,33 @@ impl Window {
 ///
 /// # Shapes
 /// `level` `[B·H·W, hl, wl]`, `coords` `[B, 2, H, W]` (no gradient) → `[B, (2r+1)², H, W]`
-pub fn lookup_level_train(level: &Tensor<3>, coords: &Tensor<4>, radius: usize, l: usize) -> Option<Tensor<4>> {
+pub fn lookup_level_train(
+    level: &Tensor<3>,
+    coords: &Tensor<4>,
+    radius: usize,
+    l: usize,
+) -> Option<Tensor<4>> {
     let [b, two, h, w] = coords.dims();
     let [n, hl, wl] = level.dims();
     if two != 2 || n != b * h * w || level.dtype() != burn::tensor::DType::F32 {
         return None;
     }
     let lp = level.clone().try_into_primitive::<Ad>().ok()?;
-    let plain = if coords.is_autodiff() { coords.clone().inner() } else { coords.clone() };
+    let plain = if coords.is_autodiff() {
+        coords.clone().inner()
+    } else {
+        coords.clone()
+    };
     let c = plain.into_data().try_into_vec::<f32>().ok()?;
-    let win = Window { b, h, w, hl, wl, r: radius, scale: 1.0 / (1u64 << l) as f32 };
+    let win = Window {
+        b,
+        h,
+        w,
+        hl,
+        wl,
+        r: radius,
+        scale: 1.0 / (1u64 << l) as f32,
+    };
     Some(Tensor::from_primitive::<Ad>(lookup_op(lp, c, win)))
 }
 
@@ -155,22 +176,20 @@ fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
 
         fn backward(self, ops: Ops<Self::State, 1>, grads: &mut Gradients, _: &mut Checkpointer) {
             let [node] = ops.parents;
-            let g = Tensor::<4>::from_primitive::<Flex>(grads.consume::<Flex>(&ops.node));
+            let (gv, _) = to_host::<4>(grads.consume::<Flex>(&ops.node));
             let (coords, win) = ops.state;
             if let Some(node) = node {
-                let gv = g.into_data().try_into_vec::<f32>().unwrap_or_default();
                 let d = win.backward(&coords, &gv);
                 let shape = [win.b * win.h * win.w, win.hl, win.wl];
-                grads.register::<Flex>(node.id, flex3(d, shape));
+                grads.register::<Flex>(node.id, from_host(d, shape));
             }
         }
     }
 
     let run = |level: &AdT| {
-        let t = Tensor::<3>::from_primitive::<Flex>(level.primitive().clone());
-        let v = t.into_data().try_into_vec::<f32>().unwrap_or_default();
+        let (v, _) = to_host::<3>(level.primitive().clone());
         let k = win.k();
-        flex4(win.forward(&v, &coords), [win.b, k * k, win.h, win.w])
+        from_host(win.forward(&v, &coords), [win.b, k * k, win.h, win.w])
     };
     match HostLookup
         .prepare::<NoCheckpointing>([level.node()])
@@ -182,19 +201,5 @@ fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
             prep.finish((coords, win), y)
         }
         OpsKind::UnTracked(prep) => prep.finish(run(&level)),
-    }
-}
-
-fn flex3(v: Vec<f32>, shape: [usize; 3]) -> FlexT {
-    match Tensor::<3>::from_data(TensorData::new(v, shape), &Device::flex()).try_into_primitive::<Flex>() {
-        Ok(p) => p,
-        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
-    }
-}
-
-fn flex4(v: Vec<f32>, shape: [usize; 4]) -> FlexT {
-    match Tensor::<4>::from_data(TensorData::new(v, shape), &Device::flex()).try_into_primitive::<Flex>() {
-        Ok(p) => p,
-        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
     }
 }

@@ -38,12 +38,7 @@ pub fn conv_forward(c: &Conv2d, x: Tensor<4>) -> Tensor<4> {
             x,
             c.weight.val(),
             c.bias.as_ref().map(|b| b.val()),
-            ConvOptions::new_with_padding(
-                c.stride,
-                [(top, bottom), (left, right)],
-                c.dilation,
-                1,
-            ),
+            ConvOptions::new_with_padding(c.stride, [(top, bottom), (left, right)], c.dilation, 1),
         ),
         _ => c.forward(x),
     }
@@ -146,7 +141,11 @@ struct Geometry {
 }
 
 impl Geometry {
-    fn new([batch, cin, h, w]: [usize; 4], [cout, _, kh, kw]: [usize; 4], o: &ConvOptions<2>) -> Self {
+    fn new(
+        [batch, cin, h, w]: [usize; 4],
+        [cout, _, kh, kw]: [usize; 4],
+        o: &ConvOptions<2>,
+    ) -> Self {
         let out = |size: usize, (p0, p1): (usize, usize), k: usize, s: usize, d: usize| {
             let span = d * (k - 1) + 1;
             (size + p0 + p1).checked_sub(span).map_or(0, |v| v / s + 1)
@@ -253,7 +252,15 @@ impl Geometry {
     }
 
     /// Adds `g(rows [oy0, oy1) of image b) · cols(band)ᵀ` to `acc` `[Cout, k]`.
-    fn band_weight_grad(&self, x: &[f32], g: &[f32], b: usize, oy0: usize, oy1: usize, acc: &mut [f32]) {
+    fn band_weight_grad(
+        &self,
+        x: &[f32],
+        g: &[f32],
+        b: usize,
+        oy0: usize,
+        oy1: usize,
+        acc: &mut [f32],
+    ) {
         let (hw_in, hw_out, k) = (self.h * self.w, self.ho * self.wo, self.k());
         let n = (oy1 - oy0) * self.wo;
         let p0 = oy0 * self.wo;
@@ -466,7 +473,10 @@ mod tests {
             let got = conv2d_forward(x, wt, bias, opts);
             assert_eq!(got.dims(), want.dims(), "case {cin} {cout} {k} {s} {d}");
             let diff: f32 = (got - want).abs().max().into_scalar();
-            assert!(diff < 1e-4, "case {cin} {cout} {k} {s} {d}: max difference {diff}");
+            assert!(
+                diff < 1e-4,
+                "case {cin} {cout} {k} {s} {d}: max difference {diff}"
+            );
         }
     }
 
@@ -480,7 +490,10 @@ mod tests {
         let bias = Tensor::<1>::random([cout], Distribution::Normal(0.0, 1.0), &dev);
         let opts = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
         let g = Geometry::new([2, cin, h, w], [cout, cin, 3, 3], &opts);
-        assert!(g.ho.div_ceil((BAND_FLOATS / (g.k() * g.wo)).max(1)) > 2, "one band only");
+        assert!(
+            g.ho.div_ceil((BAND_FLOATS / (g.k() * g.wo)).max(1)) > 2,
+            "one band only"
+        );
         let want = conv2d(x.clone(), wt.clone(), Some(bias.clone()), opts.clone());
         let got = conv2d_forward(x, wt, Some(bias), opts);
         let diff: f32 = (got - want).abs().max().into_scalar();

@@ -44,7 +44,10 @@ pub fn group_norm(
     };
     let affine = affine.as_ref().map(|(g, bt)| (g.as_slice(), bt.as_slice()));
     let out = normalise(xv, [b, c, h * w], groups, epsilon, affine);
-    Some(Tensor::from_data(TensorData::new(out, [b, c, h, w]), &device))
+    Some(Tensor::from_data(
+        TensorData::new(out, [b, c, h, w]),
+        &device,
+    ))
 }
 
 /// Mean and 1/√(var + ε) of one group, accumulated in f64.
@@ -81,7 +84,11 @@ pub fn normalise(
         .for_each(|(i, (dst, src))| {
             let (mean, inv) = stats(src, epsilon);
             let first_channel = (i % groups) * (c / groups);
-            for (k, (d, s)) in dst.chunks_mut(hw.max(1)).zip(src.chunks(hw.max(1))).enumerate() {
+            for (k, (d, s)) in dst
+                .chunks_mut(hw.max(1))
+                .zip(src.chunks(hw.max(1)))
+                .enumerate()
+            {
                 let (scale, shift) = match affine {
                     Some((g, bt)) => (inv * g[first_channel + k], bt[first_channel + k]),
                     None => (inv, 0.0),
@@ -180,8 +187,14 @@ mod tests {
         inst.beta = Some(burn::module::Param::from_tensor(bt.clone()));
         group.gamma = Some(burn::module::Param::from_tensor(g.clone()));
         group.beta = Some(burn::module::Param::from_tensor(bt.clone()));
-        let got = group_norm(x.clone(), 16, inst.epsilon, Some(g.clone()), Some(bt.clone()))
-            .expect("f32");
+        let got = group_norm(
+            x.clone(),
+            16,
+            inst.epsilon,
+            Some(g.clone()),
+            Some(bt.clone()),
+        )
+        .expect("f32");
         let diff: f32 = (got - inst.forward(x.clone())).abs().max().into_scalar();
         assert!(diff < 1e-4, "instance: max difference {diff}");
         let got = group_norm(x.clone(), 8, group.epsilon, Some(g), Some(bt)).expect("f32");

@@ -69,8 +69,10 @@ impl Mms {
         // beside it. At inference the two run concurrently, so small layers that cannot use
         // every core leave the rest to the other encoder.
         let features = || {
-            self.feature_encoder
-                .forward(Tensor::cat(vec![norm(image1.clone()), norm(image2.clone())], 0))
+            self.feature_encoder.forward(Tensor::cat(
+                vec![norm(image1.clone()), norm(image2.clone())],
+                0,
+            ))
         };
         let context = || self.context_encoder.forward(norm(image1.clone())); // [B, Ch + Cc, H/8, W/8]
         let (features, context) = if image1.is_autodiff() {

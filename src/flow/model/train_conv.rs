@@ -10,23 +10,18 @@
 //! The bias is added after, as an ordinary differentiable broadcast. Grouped convolutions,
 //! padding wider than the kernel's reach, other devices and other dtypes keep burn's `conv2d`.
 
+use burn::backend::Flex;
+use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::backend::autodiff::NodeId;
-use burn::backend::{Autodiff, BackendTypes, Flex};
 use burn::prelude::*;
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 
+use super::flex_bridge::{Ad, AdT, plain, primitive};
 use super::host_conv::{conv2d_forward, conv2d_weight_grad};
-
-type Ad = Autodiff<Flex, NoCheckpointing>;
-/// A CPU-backend tensor primitive.
-type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
-/// Its autodiff-tracked form.
-type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
 
 /// `conv2d(x, weight, bias, options)` under autodiff, through the host kernels when the
 /// convolution and the device allow it (see the module notes), else burn's `conv2d`.
@@ -66,20 +61,6 @@ pub fn conv2d_train(
     conv2d(x, weight, bias, options)
 }
 
-/// A flex tensor as a non-autodiff `Tensor` (no copy).
-fn plain(t: FlexT) -> Tensor<4> {
-    Tensor::<4>::from_primitive::<Flex>(t)
-}
-
-/// Back to the flex primitive. The host kernels return flex tensors, so this cannot fail for
-/// their outputs.
-fn primitive(t: Tensor<4>) -> FlexT {
-    match t.try_into_primitive::<Flex>() {
-        Ok(p) => p,
-        Err(e) => panic!("host convolution produced a tensor off the CPU backend: {e:?}"),
-    }
-}
-
 /// The output gradient of a strided convolution spread back onto the stride-1 grid, zeros in
 /// between, so that its transposed convolution is again a convolution.
 ///
@@ -99,10 +80,7 @@ fn stuff(g: Tensor<4>, [sy, sx]: [usize; 2]) -> Tensor<4> {
         for y in 0..ho {
             for x in 0..wo {
                 let cell = g.clone().slice([0..b, 0..c, y..y + 1, x..x + 1]);
-                out = out.slice_assign(
-                    [0..b, 0..c, y * sy..y * sy + 1, x * sx..x * sx + 1],
-                    cell,
-                );
+                out = out.slice_assign([0..b, 0..c, y * sy..y * sy + 1, x * sx..x * sx + 1], cell);
             }
         }
         return out;
@@ -119,11 +97,7 @@ fn stuff(g: Tensor<4>, [sy, sx]: [usize; 2]) -> Tensor<4> {
 }
 
 /// The bias-free convolution as one tracked operation.
-fn host_conv_op(
-    x: AdT,
-    w: AdT,
-    options: ConvOptions<2>,
-) -> AdT {
+fn host_conv_op(x: AdT, w: AdT, options: ConvOptions<2>) -> AdT {
     #[derive(Debug)]
     struct HostConv;
 
@@ -137,10 +111,10 @@ fn host_conv_op(
             checkpointer: &mut Checkpointer,
         ) {
             let [node_x, node_w] = ops.parents;
-            let grad = plain(grads.consume::<Flex>(&ops.node));
+            let grad = plain::<4>(grads.consume::<Flex>(&ops.node));
             let (x_state, w_state, options) = ops.state;
-            let x = plain(checkpointer.retrieve_node_output(x_state));
-            let w = plain(checkpointer.retrieve_node_output(w_state));
+            let x = plain::<4>(checkpointer.retrieve_node_output(x_state));
+            let w = plain::<4>(checkpointer.retrieve_node_output(w_state));
             let [_, _, kh, kw] = w.dims();
             if let Some(node) = node_x {
                 let [_, _, h, w_in] = x.dims();
@@ -181,12 +155,10 @@ fn host_conv_op(
         }
     }
 
-    let forward = |x: &AdT,
-                   w: &AdT,
-                   options: ConvOptions<2>| {
+    let forward = |x: &AdT, w: &AdT, options: ConvOptions<2>| {
         primitive(conv2d_forward(
-            plain(x.primitive().clone()),
-            plain(w.primitive().clone()),
+            plain::<4>(x.primitive().clone()),
+            plain::<4>(w.primitive().clone()),
             None,
             options,
         ))
@@ -227,13 +199,27 @@ mod tests {
             check(cin, cout, k, d, p, 1, h, w, b);
         }
         // Strided: the stem, the downsampling 3×3 and the 1×1 projection, on even and odd sizes.
-        for (cin, cout, k, p, h, w) in [(3, 8, 7, 3, 16, 20), (6, 9, 3, 1, 11, 14), (5, 7, 1, 0, 9, 12)] {
+        for (cin, cout, k, p, h, w) in [
+            (3, 8, 7, 3, 16, 20),
+            (6, 9, 3, 1, 11, 14),
+            (5, 7, 1, 0, 9, 12),
+        ] {
             check(cin, cout, k, 1, p, 2, h, w, 2);
         }
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn check(cin: usize, cout: usize, k: usize, d: usize, p: usize, s: usize, h: usize, w: usize, b: usize) {
+    fn check(
+        cin: usize,
+        cout: usize,
+        k: usize,
+        d: usize,
+        p: usize,
+        s: usize,
+        h: usize,
+        w: usize,
+        b: usize,
+    ) {
         let dev = Device::flex().autodiff();
         {
             let x0 = Tensor::<4>::random([b, cin, h, w], Distribution::Normal(0.0, 1.0), &dev);
@@ -241,7 +227,12 @@ mod tests {
             let b0 = Tensor::<1>::random([cout], Distribution::Normal(0.0, 1.0), &dev);
             let opts = ConvOptions::new([s, s], [p, p], [d, d], 1);
             let weights = Tensor::<4>::random(
-                [b, cout, (h + 2 * p - d * (k - 1) - 1) / s + 1, (w + 2 * p - d * (k - 1) - 1) / s + 1],
+                [
+                    b,
+                    cout,
+                    (h + 2 * p - d * (k - 1) - 1) / s + 1,
+                    (w + 2 * p - d * (k - 1) - 1) / s + 1,
+                ],
                 Distribution::Normal(0.0, 1.0),
                 &dev,
             );
@@ -270,12 +261,19 @@ mod tests {
             let close = |a: Tensor<4>, b: Tensor<4>, what: &str| {
                 let scale: f32 = b.clone().abs().max().into_scalar();
                 let diff: f32 = (a - b).abs().max().into_scalar();
-                assert!(diff <= 1e-4 * scale.max(1.0), "{cin}->{cout} k{k} d{d} s{s}: {what} off by {diff}");
+                assert!(
+                    diff <= 1e-4 * scale.max(1.0),
+                    "{cin}->{cout} k{k} d{d} s{s}: {what} off by {diff}"
+                );
             };
             close(ya, yb, "output");
             close(gxa, gxb, "input gradient");
             close(gwa, gwb, "weight gradient");
-            close(gba.reshape([1, cout, 1, 1]), gbb.reshape([1, cout, 1, 1]), "bias gradient");
+            close(
+                gba.reshape([1, cout, 1, 1]),
+                gbb.reshape([1, cout, 1, 1]),
+                "bias gradient",
+            );
         }
     }
 

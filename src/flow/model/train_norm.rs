@@ -5,19 +5,16 @@
 //! their gradients. Other devices, other dtypes and layers without affine parameters keep
 //! burn's layer.
 
+use burn::backend::Flex;
 use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::backend::{Autodiff, BackendTypes, Flex};
 use burn::prelude::*;
 
+use super::flex_bridge::{Ad, AdT, from_host, to_host};
 use super::host_norm::{normalise, normalise_backward};
-
-type Ad = Autodiff<Flex, NoCheckpointing>;
-type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
-type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
 
 /// Group normalisation with affine parameters under autodiff on the CPU backend; `None` when
 /// the tensors are elsewhere (the caller then uses burn's layer).
@@ -44,31 +41,9 @@ pub fn group_norm_train(
     let xp = x.clone().try_into_primitive::<Ad>().ok()?;
     let gp = gamma.clone().try_into_primitive::<Ad>().ok()?;
     let bp = beta.clone().try_into_primitive::<Ad>().ok()?;
-    Some(Tensor::from_primitive::<Ad>(norm_op(xp, gp, bp, groups, epsilon)))
-}
-
-/// Host data of a flex tensor (f32 was checked by the caller).
-fn host(t: FlexT) -> (Vec<f32>, Vec<usize>) {
-    let t = Tensor::<4>::from_primitive::<Flex>(t);
-    let dims = t.dims().to_vec();
-    let v = t.into_data().try_into_vec::<f32>().unwrap_or_default();
-    (v, dims)
-}
-
-/// A 1-D host vector on the CPU backend.
-fn host1(t: FlexT) -> Vec<f32> {
-    Tensor::<1>::from_primitive::<Flex>(t)
-        .into_data()
-        .try_into_vec::<f32>()
-        .unwrap_or_default()
-}
-
-fn flex<const D: usize>(v: Vec<f32>, shape: [usize; D]) -> FlexT {
-    let t = Tensor::<D>::from_data(TensorData::new(v, shape), &Device::flex());
-    match t.try_into_primitive::<Flex>() {
-        Ok(p) => p,
-        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
-    }
+    Some(Tensor::from_primitive::<Ad>(norm_op(
+        xp, gp, bp, groups, epsilon,
+    )))
 }
 
 fn norm_op(x: AdT, gamma: AdT, beta: AdT, groups: usize, epsilon: f64) -> AdT {
@@ -85,30 +60,29 @@ fn norm_op(x: AdT, gamma: AdT, beta: AdT, groups: usize, epsilon: f64) -> AdT {
             checkpointer: &mut Checkpointer,
         ) {
             let [node_x, node_g, node_b] = ops.parents;
-            let (dy, dims) = host(grads.consume::<Flex>(&ops.node));
+            let (dy, [b, c, h, w]) = to_host::<4>(grads.consume::<Flex>(&ops.node));
             let (x_state, g_state, groups, epsilon) = ops.state;
-            let (x, _) = host(checkpointer.retrieve_node_output(x_state));
-            let gamma = host1(checkpointer.retrieve_node_output(g_state));
-            let [b, c, h, w] = [dims[0], dims[1], dims[2], dims[3]];
+            let (x, _) = to_host::<4>(checkpointer.retrieve_node_output(x_state));
+            let (gamma, _) = to_host::<1>(checkpointer.retrieve_node_output(g_state));
             let (dx, dg, db) = normalise_backward(&x, &dy, [b, c, h * w], groups, epsilon, &gamma);
             if let Some(node) = node_x {
-                grads.register::<Flex>(node.id, flex(dx, [b, c, h, w]));
+                grads.register::<Flex>(node.id, from_host(dx, [b, c, h, w]));
             }
             if let Some(node) = node_g {
-                grads.register::<Flex>(node.id, flex(dg, [c]));
+                grads.register::<Flex>(node.id, from_host(dg, [c]));
             }
             if let Some(node) = node_b {
-                grads.register::<Flex>(node.id, flex(db, [c]));
+                grads.register::<Flex>(node.id, from_host(db, [c]));
             }
         }
     }
 
     let forward = |x: &AdT, gamma: &AdT, beta: &AdT| {
-        let (xv, dims) = host(x.primitive().clone());
-        let (g, bt) = (host1(gamma.primitive().clone()), host1(beta.primitive().clone()));
-        let [b, c, h, w] = [dims[0], dims[1], dims[2], dims[3]];
+        let (xv, [b, c, h, w]) = to_host::<4>(x.primitive().clone());
+        let (g, _) = to_host::<1>(gamma.primitive().clone());
+        let (bt, _) = to_host::<1>(beta.primitive().clone());
         let y = normalise(&xv, [b, c, h * w], groups, epsilon, Some((&g, &bt)));
-        flex(y, [b, c, h, w])
+        from_host(y, [b, c, h, w])
     };
     match HostNorm
         .prepare::<NoCheckpointing>([x.node(), gamma.node(), beta.node()])
@@ -144,7 +118,10 @@ mod tests {
             let weights = Tensor::<4>::random([2, 12, 5, 7], Distribution::Normal(0.0, 1.0), &dev);
             let run = |host: bool| {
                 let x = x0.clone().detach().require_grad();
-                let (g, b) = (g0.clone().detach().require_grad(), b0.clone().detach().require_grad());
+                let (g, b) = (
+                    g0.clone().detach().require_grad(),
+                    b0.clone().detach().require_grad(),
+                );
                 let y = if host {
                     group_norm_train(&x, groups, 1e-5, &g, &b).expect("host path")
                 } else if groups == 12 {

@@ -9,7 +9,7 @@ use burn::tensor::ops::ConvOptions;
 
 use super::blocks::{bias_or_zeros, conv};
 use super::config::MmsConfig;
-use super::host_conv::{conv2d_forward, conv_forward};
+use super::host_conv::{conv_forward, conv2d_forward};
 
 /// Encodes (correlation, flow) into motion features, keeping the flow itself as two channels.
 #[derive(Module, Debug)]
@@ -36,8 +36,14 @@ impl MotionEncoder {
     /// # Shapes
     /// `corr`: `[B, L·k², H, W]`, `flow`: `[B, 2, H, W]` → `[B, motion_dims[2], H, W]`
     pub fn forward(&self, corr: Tensor<4>, flow: Tensor<4>) -> Tensor<4> {
-        let c = relu(conv_forward(&self.corr2, relu(conv_forward(&self.corr1, corr))));
-        let f = relu(conv_forward(&self.flow2, relu(conv_forward(&self.flow1, flow.clone()))));
+        let c = relu(conv_forward(
+            &self.corr2,
+            relu(conv_forward(&self.corr1, corr)),
+        ));
+        let f = relu(conv_forward(
+            &self.flow2,
+            relu(conv_forward(&self.flow1, flow.clone())),
+        ));
         let m = relu(conv_forward(&self.out, Tensor::cat(vec![c, f], 1)));
         Tensor::cat(vec![m, flow], 1)
     }
@@ -158,9 +164,7 @@ impl UpdateBlock {
         )); // [B, 2·head, H, W]
         let delta = conv_forward(&self.flow2, both.clone().narrow(1, 0, head));
         // RAFT scales the mask logits by 1/4 to balance their gradients against the flow's.
-        let mask = Some(
-            conv_forward(&self.mask2, both.narrow(1, head, head)).mul_scalar(0.25),
-        );
+        let mask = Some(conv_forward(&self.mask2, both.narrow(1, head, head)).mul_scalar(0.25));
         (hidden, delta, mask)
     }
 }

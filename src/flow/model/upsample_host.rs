@@ -7,18 +7,16 @@
 //! Mask channel `k·64 + s` holds neighbour k = 3·ky + kx (offset (ky − 1, kx − 1)) of sub-pixel
 //! s = 8·i + j, as [`super::upsample::convex_upsample`] reads it.
 
+use burn::backend::Flex;
+use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::backend::autodiff::NodeId;
-use burn::backend::{Autodiff, BackendTypes, Flex};
 use burn::prelude::*;
 use rayon::prelude::*;
 
-type Ad = Autodiff<Flex, NoCheckpointing>;
-type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
-type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
+use super::flex_bridge::{Ad, AdT, from_host, to_host};
 
 /// The convex upsampling on the CPU backend (with or without autodiff); `None` elsewhere or for
 /// other dtypes (the caller then uses the tensor form).
@@ -42,7 +40,10 @@ pub fn convex_upsample_host(flow: &Tensor<4>, mask: &Tensor<4>) -> Option<Tensor
     let fv = flow.clone().into_data().try_into_vec::<f32>().ok()?;
     let mv = mask.clone().into_data().try_into_vec::<f32>().ok()?;
     let out = forward(&fv, &mv, [b, h, w]);
-    Some(Tensor::from_data(TensorData::new(out, [b, 2, 8 * h, 8 * w]), &flow.device()))
+    Some(Tensor::from_data(
+        TensorData::new(out, [b, 2, 8 * h, 8 * w]),
+        &flow.device(),
+    ))
 }
 
 /// Softmax over the 9 logits of sub-pixel s at cell p.
@@ -63,7 +64,10 @@ fn weights(mask: &[f32], hw: usize, s: usize, p: usize) -> [f32; 9] {
 fn neighbours(flow: &[f32], [h, w]: [usize; 2], y: usize, x: usize) -> [[f32; 9]; 2] {
     std::array::from_fn(|d| {
         std::array::from_fn(|k| {
-            let (yy, xx) = (y as isize + (k / 3) as isize - 1, x as isize + (k % 3) as isize - 1);
+            let (yy, xx) = (
+                y as isize + (k / 3) as isize - 1,
+                x as isize + (k % 3) as isize - 1,
+            );
             if yy < 0 || xx < 0 || yy >= h as isize || xx >= w as isize {
                 0.0
             } else {
@@ -83,7 +87,10 @@ fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
     let chunks: Vec<Vec<f32>> = rows
         .par_iter()
         .map(|&(bi, y)| {
-            let (f, m) = (&flow[bi * 2 * hw..(bi + 1) * 2 * hw], &mask[bi * 576 * hw..(bi + 1) * 576 * hw]);
+            let (f, m) = (
+                &flow[bi * 2 * hw..(bi + 1) * 2 * hw],
+                &mask[bi * 576 * hw..(bi + 1) * 576 * hw],
+            );
             let mut rowbuf = vec![0f32; 2 * 8 * wf];
             for x in 0..w {
                 let nb = neighbours(f, [h, w], y, x);
@@ -120,11 +127,16 @@ fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Ve
     let mut dmask = vec![0f32; b * 576 * hw];
     // coef[b, d, k, p] = 8 Σ_s w_k(p, s) g_d(p, s): what neighbour k of cell p receives.
     let mut coef = vec![0f32; b * 2 * 9 * hw];
-    let cells: Vec<(usize, usize)> = (0..b).flat_map(|bi| (0..hw).map(move |p| (bi, p))).collect();
+    let cells: Vec<(usize, usize)> = (0..b)
+        .flat_map(|bi| (0..hw).map(move |p| (bi, p)))
+        .collect();
     let per_cell: Vec<([f32; 576], [f32; 18])> = cells
         .par_iter()
         .map(|&(bi, p)| {
-            let (f, m) = (&flow[bi * 2 * hw..(bi + 1) * 2 * hw], &mask[bi * 576 * hw..(bi + 1) * 576 * hw]);
+            let (f, m) = (
+                &flow[bi * 2 * hw..(bi + 1) * 2 * hw],
+                &mask[bi * 576 * hw..(bi + 1) * 576 * hw],
+            );
             let (y, x) = (p / w, p % w);
             let nb = neighbours(f, [h, w], y, x);
             let mut dm = [0f32; 576];
@@ -178,19 +190,6 @@ fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Ve
     (dflow, dmask)
 }
 
-fn host(t: FlexT) -> (Vec<f32>, [usize; 4]) {
-    let t = Tensor::<4>::from_primitive::<Flex>(t);
-    let dims = t.dims();
-    (t.into_data().try_into_vec::<f32>().unwrap_or_default(), dims)
-}
-
-fn flex(v: Vec<f32>, shape: [usize; 4]) -> FlexT {
-    match Tensor::<4>::from_data(TensorData::new(v, shape), &Device::flex()).try_into_primitive::<Flex>() {
-        Ok(p) => p,
-        Err(e) => panic!("a host tensor landed off the CPU backend: {e:?}"),
-    }
-}
-
 fn upsample_op(flow: AdT, mask: AdT) -> AdT {
     #[derive(Debug)]
     struct HostUpsample;
@@ -205,24 +204,24 @@ fn upsample_op(flow: AdT, mask: AdT) -> AdT {
             checkpointer: &mut Checkpointer,
         ) {
             let [node_f, node_m] = ops.parents;
-            let (g, _) = host(grads.consume::<Flex>(&ops.node));
+            let (g, _) = to_host::<4>(grads.consume::<Flex>(&ops.node));
             let (f_state, m_state) = ops.state;
-            let (f, [b, _, h, w]) = host(checkpointer.retrieve_node_output(f_state));
-            let (m, _) = host(checkpointer.retrieve_node_output(m_state));
+            let (f, [b, _, h, w]) = to_host::<4>(checkpointer.retrieve_node_output(f_state));
+            let (m, _) = to_host::<4>(checkpointer.retrieve_node_output(m_state));
             let (dflow, dmask) = backward(&f, &m, &g, [b, h, w]);
             if let Some(node) = node_f {
-                grads.register::<Flex>(node.id, flex(dflow, [b, 2, h, w]));
+                grads.register::<Flex>(node.id, from_host(dflow, [b, 2, h, w]));
             }
             if let Some(node) = node_m {
-                grads.register::<Flex>(node.id, flex(dmask, [b, 576, h, w]));
+                grads.register::<Flex>(node.id, from_host(dmask, [b, 576, h, w]));
             }
         }
     }
 
     let run = |flow: &AdT, mask: &AdT| {
-        let (f, [b, _, h, w]) = host(flow.primitive().clone());
-        let (m, _) = host(mask.primitive().clone());
-        flex(forward(&f, &m, [b, h, w]), [b, 2, 8 * h, 8 * w])
+        let (f, [b, _, h, w]) = to_host::<4>(flow.primitive().clone());
+        let (m, _) = to_host::<4>(mask.primitive().clone());
+        from_host(forward(&f, &m, [b, h, w]), [b, 2, 8 * h, 8 * w])
     };
     match HostUpsample
         .prepare::<NoCheckpointing>([flow.node(), mask.node()])
@@ -253,16 +252,24 @@ mod tests {
         let (b, h, w) = (2, 3, 5);
         let f0 = Tensor::<4>::random([b, 2, h, w], Distribution::Normal(0.0, 2.0), &dev);
         let m0 = Tensor::<4>::random([b, 576, h, w], Distribution::Normal(0.0, 3.0), &dev);
-        let weights = Tensor::<4>::random([b, 2, 8 * h, 8 * w], Distribution::Normal(0.0, 1.0), &dev);
+        let weights =
+            Tensor::<4>::random([b, 2, 8 * h, 8 * w], Distribution::Normal(0.0, 1.0), &dev);
         let run = |host: bool| {
-            let (f, m) = (f0.clone().detach().require_grad(), m0.clone().detach().require_grad());
+            let (f, m) = (
+                f0.clone().detach().require_grad(),
+                m0.clone().detach().require_grad(),
+            );
             let y = if host {
                 convex_upsample_host(&f, &m).expect("host path")
             } else {
                 convex_upsample_tensor(f.clone(), m.clone())
             };
             let g = (y.clone() * weights.clone()).sum().backward();
-            (y.inner(), f.grad(&g).expect("flow gradient"), m.grad(&g).expect("mask gradient"))
+            (
+                y.inner(),
+                f.grad(&g).expect("flow gradient"),
+                m.grad(&g).expect("mask gradient"),
+            )
         };
         let (ya, fa, ma) = run(true);
         let (yb, fb, mb) = run(false);

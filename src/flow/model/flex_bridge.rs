@@ -1,0 +1,47 @@
+//! The bridge between burn's tensors and the host kernels' memory for the autodiff operations
+//! of training on the CPU backend (`train_conv`, `train_norm`, `corr_lookup_op`,
+//! `upsample_host`): the backend types and the conversions between a backend primitive, a plain
+//! tensor and a host vector.
+
+use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
+use burn::backend::{Autodiff, BackendTypes, Flex};
+use burn::prelude::*;
+
+/// The autodiff CPU backend that `Device::flex().autodiff()` tensors live on.
+pub type Ad = Autodiff<Flex, NoCheckpointing>;
+/// A CPU-backend tensor primitive.
+pub type FlexT = <Flex as BackendTypes>::FloatTensorPrimitive;
+/// Its autodiff-tracked form.
+pub type AdT = <Ad as BackendTypes>::FloatTensorPrimitive;
+
+/// A CPU-backend primitive as a plain (non-autodiff) tensor, without a copy.
+pub fn plain<const D: usize>(t: FlexT) -> Tensor<D> {
+    Tensor::<D>::from_primitive::<Flex>(t)
+}
+
+/// A plain CPU tensor back to its primitive. The host kernels only produce CPU tensors, so a
+/// failure is a bug, not bad input.
+pub fn primitive<const D: usize>(t: Tensor<D>) -> FlexT {
+    match t.try_into_primitive::<Flex>() {
+        Ok(p) => p,
+        Err(e) => panic!("a host kernel produced a tensor off the CPU backend: {e:?}"),
+    }
+}
+
+/// The f32 values and shape of a primitive (the operations check f32 before they are built).
+pub fn to_host<const D: usize>(t: FlexT) -> (Vec<f32>, [usize; D]) {
+    let t = plain::<D>(t);
+    let dims = t.dims();
+    (
+        t.into_data().try_into_vec::<f32>().unwrap_or_default(),
+        dims,
+    )
+}
+
+/// Host values as a primitive of the given shape.
+pub fn from_host<const D: usize>(v: Vec<f32>, shape: [usize; D]) -> FlexT {
+    primitive(Tensor::<D>::from_data(
+        TensorData::new(v, shape),
+        &Device::flex(),
+    ))
+}
