@@ -12,7 +12,7 @@ use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
 use rayon::prelude::*;
 
-use super::corr_lookup_op::lookup_level_train;
+use super::corr_lookup_op::{lookup_level_train, lookup_levels_host};
 
 /// One pyramid level `[B·H·W, H/2^l, W/2^l]`.
 enum Level {
@@ -118,7 +118,7 @@ impl CorrPyramid {
             && let Ok(c) = coords.clone().into_data().try_into_vec::<f32>()
         {
             let k = 2 * r + 1;
-            let out = host_lookup(&host, &self.sizes, &c, [b, h, w], r);
+            let out = lookup_levels_host(&host, &self.sizes, &c, [b, h, w], r);
             return Tensor::from_data(TensorData::new(out, [b, host.len() * k * k, h, w]), &device);
         }
         let levels: Vec<Tensor<3>> = self
@@ -252,75 +252,6 @@ fn host_pyramid(
         }
     }
     (levels, sizes)
-}
-
-/// The lookup of [`CorrPyramid::lookup`] on host memory: for every pixel and level, the
-/// (2r+1)² window around its scaled position, bilinear with zero padding (align_corners = true),
-/// written channel-major.
-///
-/// # Shapes
-/// `levels[l]`: `[B·H·W, h_l, w_l]`, `coords`: `[B, 2, H, W]` → `[B, L·(2r+1)², H, W]`
-fn host_lookup(
-    levels: &[&[f32]],
-    sizes: &[(usize, usize)],
-    coords: &[f32],
-    [b, h, w]: [usize; 3],
-    r: usize,
-) -> Vec<f32> {
-    let hw = h * w;
-    let k = 2 * r + 1;
-    let lk = levels.len() * k * k;
-    // Pixel-major first ([B·H·W, L·k²]: each pixel's windows are one contiguous run), then
-    // transposed per image to channel-major.
-    let mut windows = vec![0f32; b * hw * lk];
-    windows.par_chunks_mut(lk).enumerate().for_each(|(n, dst)| {
-        let (bi, p) = (n / hw, n % hw);
-        let x = coords[(2 * bi) * hw + p];
-        let y = coords[(2 * bi + 1) * hw + p];
-        for (l, (level, &(hl, wl))) in levels.iter().zip(sizes).enumerate() {
-            let scale = 1.0 / (1u32 << l) as f32;
-            let (xs, ys) = (x * scale, y * scale);
-            let (xf, yf) = (xs.floor(), ys.floor());
-            let (fx, fy) = (xs - xf, ys - yf);
-            // Saturating casts, kept far from overflow when offsets are added.
-            let bound = 1i64 << 40;
-            let (x0, y0) = (
-                (xf as i64).clamp(-bound, bound) - r as i64,
-                (yf as i64).clamp(-bound, bound) - r as i64,
-            );
-            let map = &level[n * hl * wl..(n + 1) * hl * wl];
-            let at = |yy: i64, xx: i64| -> f32 {
-                if yy >= 0 && xx >= 0 && (yy as usize) < hl && (xx as usize) < wl {
-                    map[yy as usize * wl + xx as usize]
-                } else {
-                    0.0
-                }
-            };
-            let (gx, gy) = (1.0 - fx, 1.0 - fy);
-            let out = &mut dst[l * k * k..(l + 1) * k * k];
-            for i in 0..k {
-                let yy = y0 + i as i64;
-                for j in 0..k {
-                    let xx = x0 + j as i64;
-                    out[i * k + j] = at(yy, xx) * (gy * gx)
-                        + at(yy, xx + 1) * (gy * fx)
-                        + at(yy + 1, xx) * (fy * gx)
-                        + at(yy + 1, xx + 1) * (fy * fx);
-                }
-            }
-        }
-    });
-    let mut out = vec![0f32; b * lk * hw];
-    for bi in 0..b {
-        let src = &windows[bi * hw * lk..(bi + 1) * hw * lk];
-        let dst = &mut out[bi * lk * hw..(bi + 1) * lk * hw];
-        for (p, row) in src.chunks_exact(lk).enumerate() {
-            for (ch, v) in row.iter().enumerate() {
-                dst[ch * hw + p] = *v;
-            }
-        }
-    }
-    out
 }
 
 /// Bilinear lookup of a (2r+1)² window with zero padding outside the level: one gather of the

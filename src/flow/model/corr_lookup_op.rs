@@ -1,5 +1,5 @@
-//! The correlation lookup of training (Note S9) as one autodiff operation per pyramid level on
-//! the CPU backend: the forward pass reads the (2r+1)² bilinear window around every pixel's
+//! The correlation lookup (Note S9) on host memory: at inference directly, in training as one
+//! autodiff operation per pyramid level on the CPU backend. The forward pass reads the (2r+1)² bilinear window around every pixel's
 //! scaled position directly, and the backward pass adds the window's gradient back onto the
 //! four corners of every tap, each pixel into its own correlation map (so pixels run in
 //! parallel without conflicts). The positions carry no gradient, as in RAFT.
@@ -130,6 +130,41 @@ impl Window {
             });
         dlevel
     }
+}
+
+/// Every level's windows on host memory, for inference: level l of image b fills channels
+/// `[l·(2r+1)², (l+1)·(2r+1)²)`.
+///
+/// # Shapes
+/// `levels[l]` `[B·H·W, h_l, w_l]`, `coords` `[B, 2, H, W]` → `[B, L·(2r+1)², H, W]`
+pub fn lookup_levels_host(
+    levels: &[&[f32]],
+    sizes: &[(usize, usize)],
+    coords: &[f32],
+    [b, h, w]: [usize; 3],
+    r: usize,
+) -> Vec<f32> {
+    let (k2, hw) = ((2 * r + 1).pow(2), h * w);
+    let lk = levels.len() * k2;
+    let mut out = vec![0f32; b * lk * hw];
+    for (l, (level, &(hl, wl))) in levels.iter().zip(sizes).enumerate() {
+        let scale = 1.0 / (1u64 << l) as f32;
+        let part = Window {
+            b,
+            h,
+            w,
+            hl,
+            wl,
+            r,
+            scale,
+        }
+        .forward(level, coords); // [B, k², H, W]
+        for bi in 0..b {
+            out[(bi * lk + l * k2) * hw..(bi * lk + (l + 1) * k2) * hw]
+                .copy_from_slice(&part[bi * k2 * hw..(bi + 1) * k2 * hw]);
+        }
+    }
+    out
 }
 
 /// The window lookup of one level under autodiff on the CPU backend; `None` elsewhere (the

@@ -292,18 +292,7 @@ impl Geometry {
                 gemm::Parallelism::None,
             )
         };
-        if self.is_pointwise() {
-            product(image[p0..].as_ptr(), hw_in, acc);
-            return;
-        }
-        PATCHES.with(|cell| {
-            let mut cols = cell.borrow_mut();
-            if cols.len() < k * n {
-                cols.resize(k * n, 0.0);
-            }
-            self.unfold(image, oy0, oy1, &mut cols[..k * n]);
-            product(cols.as_ptr(), n, acc);
-        });
+        self.with_patches(image, oy0, oy1, |cols, stride| product(cols, stride, acc));
     }
 
     /// Output rows `[oy0, oy1)` of image `b`.
@@ -357,18 +346,31 @@ impl Geometry {
                 gemm::Parallelism::None,
             )
         };
+        self.with_patches(image, oy0, oy1, product);
+    }
+
+    /// Calls `product(cols, stride)` with the patch matrix `[Cin·kh·kw, n]` of output rows
+    /// `[oy0, oy1)` of `image`, rows `stride` floats apart: the image itself for a pointwise
+    /// convolution, else this thread's buffer, unfolded.
+    fn with_patches<R>(
+        &self,
+        image: &[f32],
+        oy0: usize,
+        oy1: usize,
+        product: impl FnOnce(*const f32, usize) -> R,
+    ) -> R {
         if self.is_pointwise() {
-            product(image[p0..].as_ptr(), hw_in);
-            return;
+            return product(image[oy0 * self.wo..].as_ptr(), self.h * self.w);
         }
+        let (k, n) = (self.k(), (oy1 - oy0) * self.wo);
         PATCHES.with(|cell| {
             let mut cols = cell.borrow_mut();
             if cols.len() < k * n {
                 cols.resize(k * n, 0.0);
             }
             self.unfold(image, oy0, oy1, &mut cols[..k * n]);
-            product(cols.as_ptr(), n);
-        });
+            product(cols.as_ptr(), n)
+        })
     }
 
     /// The patch matrix of output rows `[oy0, oy1)`: `cols[(c·kh + ky)·kw + kx][p]` is the input
