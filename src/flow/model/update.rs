@@ -53,10 +53,11 @@ impl MotionEncoder {
 /// h' = (1 − z)⊙h + z⊙h̃.
 ///
 /// A convolution of a concatenation is the sum of convolutions of its parts, Conv[h, x] =
-/// Conv_h(h) + Conv_x(x), so the forward pass splits every kernel by input channel: x is
-/// convolved once for all three gates and h once for z and r. The weights and the result are
-/// those of the three concatenated convolutions; the CPU backend unfolds each input (im2col)
-/// once instead of three times.
+/// Conv_h(h) + Conv_x(x), so at inference the forward pass splits every kernel by input
+/// channel: x is convolved once for all three gates and h once for z and r, each input unfolded
+/// once instead of three times. Under autodiff the concatenated form is used, z and r from one
+/// stacked convolution: it builds fewer graph operations (no kernel slices), which measured
+/// about 10 % faster per training step. The weights and the result are the same either way.
 #[derive(Module, Debug)]
 pub struct ConvGru {
     convz: Conv2d,
@@ -79,6 +80,26 @@ impl ConvGru {
         let ch = h.dims()[1];
         let cx = x.dims()[1];
         let same = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
+        if h.is_autodiff() {
+            // Training: the equations as written, z and r from one stacked convolution.
+            let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
+            let zr = sigmoid(conv2d_forward(
+                hx,
+                Tensor::cat(vec![self.convz.weight.val(), self.convr.weight.val()], 0),
+                Some(Tensor::cat(
+                    vec![bias_or_zeros(&self.convz), bias_or_zeros(&self.convr)],
+                    0,
+                )),
+                same.clone(),
+            ));
+            let z = zr.clone().narrow(1, 0, ch);
+            let r = zr.narrow(1, ch, ch);
+            let q = tanh(conv_forward(
+                &self.convq,
+                Tensor::cat(vec![r * h.clone(), x], 1),
+            ));
+            return (z.clone().neg() + 1.0) * h + z * q;
+        }
         // Kernels [Ch, Ch + Cx, 3, 3] split into their h part [Ch, Ch, 3, 3] and x part.
         let parts = |c: &Conv2d| {
             let w = c.weight.val();
@@ -201,10 +222,16 @@ mod tests {
         assert!(dd < 1e-5 && dm < 1e-5, "delta {dd}, mask {dm}");
     }
 
-    /// The split-kernel forward pass equals Eqs. S9–S12 written with concatenated inputs.
+    /// The split-kernel forward pass (inference) and the stacked one (training) equal
+    /// Eqs. S9–S12 written with concatenated inputs.
     #[test]
     fn gru_split_kernels_match_the_concatenated_equations() {
-        let dev = Device::flex();
+        for dev in [Device::flex(), Device::flex().autodiff()] {
+            gru_matches_equations(dev);
+        }
+    }
+
+    fn gru_matches_equations(dev: Device) {
         let gru = ConvGru::new(8, 5, &dev);
         let h = Tensor::<4>::random([2, 8, 6, 7], Distribution::Normal(0.0, 1.0), &dev);
         let x = Tensor::<4>::random([2, 5, 6, 7], Distribution::Normal(0.0, 1.0), &dev);
