@@ -69,46 +69,32 @@ impl Norm {
         }
     }
 
+    /// Groups, ε, γ and β of the layer; `None` for no normalisation.
+    #[allow(clippy::type_complexity)]
+    fn params(&self) -> Option<(usize, f64, Option<Tensor<1>>, Option<Tensor<1>>)> {
+        let val = |p: &Option<burn::module::Param<Tensor<1>>>| p.as_ref().map(|p| p.val());
+        match (&self.instance, &self.group) {
+            (Some(n), _) => Some((n.num_channels, n.epsilon, val(&n.gamma), val(&n.beta))),
+            (None, Some(n)) => Some((n.num_groups, n.epsilon, val(&n.gamma), val(&n.beta))),
+            (None, None) => None,
+        }
+    }
+
     /// # Shapes
     /// `[B, C, H, W]` → `[B, C, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        if x.is_autodiff() {
-            let host = if let Some(n) = &self.instance {
-                n.gamma
-                    .as_ref()
-                    .zip(n.beta.as_ref())
-                    .map(|(g, b)| (n.num_channels, n.epsilon, g.val(), b.val()))
-            } else {
-                self.group.as_ref().and_then(|n| {
-                    n.gamma
-                        .as_ref()
-                        .zip(n.beta.as_ref())
-                        .map(|(g, b)| (n.num_groups, n.epsilon, g.val(), b.val()))
-                })
-            };
-            if let Some((groups, eps, gamma, beta)) = host
-                && let Some(y) = group_norm_train(&x, groups, eps, &gamma, &beta)
-            {
-                return y;
-            }
-        }
-        if on_host(&x) {
-            let param = |p: &Option<burn::module::Param<Tensor<1>>>| p.as_ref().map(|p| p.val());
-            let host = if let Some(n) = &self.instance {
-                let c = n.num_channels;
-                Some((c, n.epsilon, param(&n.gamma), param(&n.beta)))
-            } else {
-                self.group
-                    .as_ref()
-                    .map(|n| (n.num_groups, n.epsilon, param(&n.gamma), param(&n.beta)))
-            };
-            if let Some((groups, eps, gamma, beta)) = host
-                && x.dims()[1].is_multiple_of(groups.max(1))
-            {
-                // Falls back to the layer below only for data that is not f32.
-                if let Some(y) = group_norm(x.clone(), groups, eps, gamma, beta) {
-                    return y;
+        // The CPU backend normalises on host memory (training through a differentiable
+        // operation); anything it declines falls through to burn's layer below.
+        if let Some((groups, eps, gamma, beta)) = self.params() {
+            let y = match (&gamma, &beta) {
+                (Some(g), Some(b)) if x.is_autodiff() => group_norm_train(&x, groups, eps, g, b),
+                _ if on_host(&x) && x.dims()[1].is_multiple_of(groups.max(1)) => {
+                    group_norm(x.clone(), groups, eps, gamma, beta)
                 }
+                _ => None,
+            };
+            if let Some(y) = y {
+                return y;
             }
         }
         if let Some(n) = &self.instance {
