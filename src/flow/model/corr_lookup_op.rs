@@ -12,7 +12,7 @@ use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::prelude::*;
 use rayon::prelude::*;
 
-use super::flex_bridge::{Ad, AdT, from_host, to_host};
+use super::flex_bridge::{Ad, AdT, HostView, from_host};
 
 /// Sizes of one lookup.
 #[derive(Clone, Copy, Debug)]
@@ -211,10 +211,10 @@ fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
 
         fn backward(self, ops: Ops<Self::State, 1>, grads: &mut Gradients, _: &mut Checkpointer) {
             let [node] = ops.parents;
-            let (gv, _) = to_host::<4>(grads.consume::<Flex>(&ops.node));
+            let gv = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
             let (coords, win) = ops.state;
             if let Some(node) = node {
-                let d = win.backward(&coords, &gv);
+                let d = win.backward(&coords, gv.values());
                 let shape = [win.b * win.h * win.w, win.hl, win.wl];
                 grads.register::<Flex>(node.id, from_host(d, shape));
             }
@@ -222,9 +222,9 @@ fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
     }
 
     let run = |level: &AdT| {
-        let (v, _) = to_host::<3>(level.primitive().clone());
+        let v = HostView::<3>::new(level.primitive().clone());
         let k = win.k();
-        from_host(win.forward(&v, &coords), [win.b, k * k, win.h, win.w])
+        from_host(win.forward(v.values(), &coords), [win.b, k * k, win.h, win.w])
     };
     match HostLookup
         .prepare::<NoCheckpointing>([level.node()])

@@ -28,14 +28,33 @@ pub fn primitive<const D: usize>(t: Tensor<D>) -> FlexT {
     }
 }
 
-/// The f32 values and shape of a primitive (the operations check f32 before they are built).
-pub fn to_host<const D: usize>(t: FlexT) -> (Vec<f32>, [usize; D]) {
-    let t = plain::<D>(t);
-    let dims = t.dims();
-    (
-        t.into_data().try_into_vec::<f32>().unwrap_or_default(),
-        dims,
-    )
+/// The f32 values and shape of a CPU-backend tensor, read in place: borrowed from the tensor's
+/// buffer when it is contiguous, copied once into a contiguous buffer otherwise. A tensor of
+/// another dtype reads as empty (the operations check f32 before they are built).
+pub struct HostView<const D: usize> {
+    t: FlexT,
+    pub dims: [usize; D],
+}
+
+impl<const D: usize> HostView<D> {
+    pub fn new(t: FlexT) -> Self {
+        let dims = plain::<D>(t.clone()).dims();
+        let t = if t.as_slice::<f32>().is_some() {
+            t
+        } else {
+            t.to_contiguous()
+        };
+        Self { t, dims }
+    }
+
+    /// A plain CPU tensor's values; `None` off the CPU backend.
+    pub fn of(t: Tensor<D>) -> Option<Self> {
+        t.try_into_primitive::<Flex>().ok().map(Self::new)
+    }
+
+    pub fn values(&self) -> &[f32] {
+        self.t.as_slice::<f32>().unwrap_or(&[])
+    }
 }
 
 /// Host values as a primitive of the given shape.

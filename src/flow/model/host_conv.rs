@@ -22,6 +22,7 @@ use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 use rayon::prelude::*;
 
+use super::flex_bridge::HostView;
 use super::train_conv::conv2d_train;
 
 /// Floats of one band's patch matrix: big enough for the product to run at full speed (measured
@@ -70,25 +71,18 @@ pub fn conv2d_forward(
     if !host {
         return conv2d(x, weight, bias, options);
     }
-    let device = x.device();
-    let xs = x.dims();
-    let ws = weight.dims();
-    let (xd, wd) = (x.into_data(), weight.into_data());
-    let bd = bias.map(|b| b.into_data());
-    let bv = bd.as_ref().map(|d| d.as_slice::<f32>());
-    let (Ok(xv), Ok(wv), Ok(bv)) = (xd.as_slice::<f32>(), wd.as_slice::<f32>(), bv.transpose())
-    else {
-        // Unreachable for the f32 tensors checked above; the backend keeps it right if not.
-        let bias = bd.clone().map(|d| Tensor::<1>::from_data(d, &device));
-        let (x, w) = (
-            Tensor::from_data(xd.clone(), &device),
-            Tensor::from_data(wd.clone(), &device),
-        );
-        return conv2d(x, w, bias, options);
+    // Read in place; unreachable fallbacks for the CPU f32 tensors checked above.
+    let (Some(xv), Some(wv)) = (HostView::of(x.clone()), HostView::of(weight.clone())) else {
+        return conv2d(x, weight, bias, options);
     };
-    let geometry = Geometry::new(xs, ws, &options);
-    let out = geometry.run(xv, wv, bv);
-    Tensor::from_data(TensorData::new(out, geometry.out_shape()), &device)
+    let bv = match bias.clone().map(HostView::of) {
+        None => None,
+        Some(Some(b)) => Some(b),
+        Some(None) => return conv2d(x, weight, bias, options),
+    };
+    let geometry = Geometry::new(xv.dims, wv.dims, &options);
+    let out = geometry.run(xv.values(), wv.values(), bv.as_ref().map(|b| b.values()));
+    Tensor::from_data(TensorData::new(out, geometry.out_shape()), &x.device())
 }
 
 /// ∂L/∂W of an ungrouped convolution on the host, given its input and the gradient of its output:
@@ -110,9 +104,8 @@ pub fn conv2d_weight_grad(
     if grad.dims() != geometry.out_shape() {
         return None;
     }
-    let (xd, gd) = (x.into_data(), grad.into_data());
-    let (xv, gv) = (xd.as_slice::<f32>().ok()?, gd.as_slice::<f32>().ok()?);
-    let dw = geometry.weight_grad(xv, gv);
+    let (xv, gv) = (HostView::of(x)?, HostView::of(grad)?);
+    let dw = geometry.weight_grad(xv.values(), gv.values());
     Some(Tensor::from_data(
         TensorData::new(dw, [cout, xs[1], kh, kw]),
         &device,

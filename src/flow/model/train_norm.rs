@@ -13,7 +13,7 @@ use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::prelude::*;
 
-use super::flex_bridge::{Ad, AdT, from_host, to_host};
+use super::flex_bridge::{Ad, AdT, HostView, from_host};
 use super::host_norm::{normalise, normalise_backward};
 
 /// Group normalisation with affine parameters under autodiff on the CPU backend; `None` when
@@ -60,11 +60,19 @@ fn norm_op(x: AdT, gamma: AdT, beta: AdT, groups: usize, epsilon: f64) -> AdT {
             checkpointer: &mut Checkpointer,
         ) {
             let [node_x, node_g, node_b] = ops.parents;
-            let (dy, [b, c, h, w]) = to_host::<4>(grads.consume::<Flex>(&ops.node));
+            let dy = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
+            let [b, c, h, w] = dy.dims;
             let (x_state, g_state, groups, epsilon) = ops.state;
-            let (x, _) = to_host::<4>(checkpointer.retrieve_node_output(x_state));
-            let (gamma, _) = to_host::<1>(checkpointer.retrieve_node_output(g_state));
-            let (dx, dg, db) = normalise_backward(&x, &dy, [b, c, h * w], groups, epsilon, &gamma);
+            let x = HostView::<4>::new(checkpointer.retrieve_node_output(x_state));
+            let gamma = HostView::<1>::new(checkpointer.retrieve_node_output(g_state));
+            let (dx, dg, db) = normalise_backward(
+                x.values(),
+                dy.values(),
+                [b, c, h * w],
+                groups,
+                epsilon,
+                gamma.values(),
+            );
             if let Some(node) = node_x {
                 grads.register::<Flex>(node.id, from_host(dx, [b, c, h, w]));
             }
@@ -78,10 +86,17 @@ fn norm_op(x: AdT, gamma: AdT, beta: AdT, groups: usize, epsilon: f64) -> AdT {
     }
 
     let forward = |x: &AdT, gamma: &AdT, beta: &AdT| {
-        let (xv, [b, c, h, w]) = to_host::<4>(x.primitive().clone());
-        let (g, _) = to_host::<1>(gamma.primitive().clone());
-        let (bt, _) = to_host::<1>(beta.primitive().clone());
-        let y = normalise(&xv, [b, c, h * w], groups, epsilon, Some((&g, &bt)));
+        let xv = HostView::<4>::new(x.primitive().clone());
+        let [b, c, h, w] = xv.dims;
+        let g = HostView::<1>::new(gamma.primitive().clone());
+        let bt = HostView::<1>::new(beta.primitive().clone());
+        let y = normalise(
+            xv.values(),
+            [b, c, h * w],
+            groups,
+            epsilon,
+            Some((g.values(), bt.values())),
+        );
         from_host(y, [b, c, h, w])
     };
     match HostNorm

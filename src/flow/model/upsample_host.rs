@@ -16,7 +16,7 @@ use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::prelude::*;
 use rayon::prelude::*;
 
-use super::flex_bridge::{Ad, AdT, from_host, to_host};
+use super::flex_bridge::{Ad, AdT, HostView, from_host};
 
 /// The convex upsampling on the CPU backend (with or without autodiff); `None` elsewhere or for
 /// other dtypes (the caller then uses the tensor form).
@@ -204,11 +204,12 @@ fn upsample_op(flow: AdT, mask: AdT) -> AdT {
             checkpointer: &mut Checkpointer,
         ) {
             let [node_f, node_m] = ops.parents;
-            let (g, _) = to_host::<4>(grads.consume::<Flex>(&ops.node));
+            let g = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
             let (f_state, m_state) = ops.state;
-            let (f, [b, _, h, w]) = to_host::<4>(checkpointer.retrieve_node_output(f_state));
-            let (m, _) = to_host::<4>(checkpointer.retrieve_node_output(m_state));
-            let (dflow, dmask) = backward(&f, &m, &g, [b, h, w]);
+            let f = HostView::<4>::new(checkpointer.retrieve_node_output(f_state));
+            let m = HostView::<4>::new(checkpointer.retrieve_node_output(m_state));
+            let [b, _, h, w] = f.dims;
+            let (dflow, dmask) = backward(f.values(), m.values(), g.values(), [b, h, w]);
             if let Some(node) = node_f {
                 grads.register::<Flex>(node.id, from_host(dflow, [b, 2, h, w]));
             }
@@ -219,9 +220,10 @@ fn upsample_op(flow: AdT, mask: AdT) -> AdT {
     }
 
     let run = |flow: &AdT, mask: &AdT| {
-        let (f, [b, _, h, w]) = to_host::<4>(flow.primitive().clone());
-        let (m, _) = to_host::<4>(mask.primitive().clone());
-        from_host(forward(&f, &m, [b, h, w]), [b, 2, 8 * h, 8 * w])
+        let f = HostView::<4>::new(flow.primitive().clone());
+        let m = HostView::<4>::new(mask.primitive().clone());
+        let [b, _, h, w] = f.dims;
+        from_host(forward(f.values(), m.values(), [b, h, w]), [b, 2, 8 * h, 8 * w])
     };
     match HostUpsample
         .prepare::<NoCheckpointing>([flow.node(), mask.node()])
