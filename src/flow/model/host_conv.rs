@@ -80,36 +80,36 @@ pub fn conv2d_forward(
         Some(Some(b)) => Some(b),
         Some(None) => return conv2d(x, weight, bias, options),
     };
-    let geometry = Geometry::new(xv.dims, wv.dims, &options);
-    let out = geometry.run(xv.values(), wv.values(), bv.as_ref().map(|b| b.values()));
-    Tensor::from_data(TensorData::new(out, geometry.out_shape()), &x.device())
+    let bias = bv.as_ref().map(|b| b.values());
+    let (out, shape) = conv_host(xv.values(), xv.dims, wv.values(), wv.dims, bias, &options);
+    Tensor::from_data(TensorData::new(out, shape), &x.device())
 }
 
-/// ∂L/∂W of an ungrouped convolution on the host, given its input and the gradient of its output:
-/// `Σ_images Σ_bands grad(band) · cols(band)ᵀ`, the unfolding of the forward pass transposed.
-/// `None` when the data is not f32.
-///
-/// # Shapes
-/// `x` `[B, Cin, H, W]`, `grad` `[B, Cout, H', W']` → `[Cout, Cin, kh, kw]`
-pub fn conv2d_weight_grad(
-    x: Tensor<4>,
-    grad: Tensor<4>,
-    [kh, kw]: [usize; 2],
+/// An ungrouped convolution of host values: `x` `[B, Cin, H, W]` by `w` `[Cout, Cin, kh, kw]`
+/// (+ `bias` `[Cout]`), returned with its shape `[B, Cout, H', W']`.
+pub fn conv_host(
+    x: &[f32],
+    xs: [usize; 4],
+    w: &[f32],
+    ws: [usize; 4],
+    bias: Option<&[f32]>,
     options: &ConvOptions<2>,
-) -> Option<Tensor<4>> {
-    let device = x.device();
-    let xs = x.dims();
-    let cout = grad.dims()[1];
-    let geometry = Geometry::new(xs, [cout, xs[1], kh, kw], options);
-    if grad.dims() != geometry.out_shape() {
-        return None;
-    }
-    let (xv, gv) = (HostView::of(x)?, HostView::of(grad)?);
-    let dw = geometry.weight_grad(xv.values(), gv.values());
-    Some(Tensor::from_data(
-        TensorData::new(dw, [cout, xs[1], kh, kw]),
-        &device,
-    ))
+) -> (Vec<f32>, [usize; 4]) {
+    let geometry = Geometry::new(xs, ws, options);
+    (geometry.run(x, w, bias), geometry.out_shape())
+}
+
+/// ∂L/∂W of an ungrouped convolution of host values, given its input `x` `[B, Cin, H, W]` and
+/// the gradient `g` `[B, Cout, H', W']` of its output: `Σ_images g · colsᵀ`, the forward
+/// unfolding transposed. Returns `[Cout, Cin, kh, kw]`.
+pub fn weight_grad_host(
+    x: &[f32],
+    xs: [usize; 4],
+    g: &[f32],
+    [cout, kh, kw]: [usize; 3],
+    options: &ConvOptions<2>,
+) -> Vec<f32> {
+    Geometry::new(xs, [cout, xs[1], kh, kw], options).weight_grad(x, g)
 }
 
 /// Sizes of one convolution.

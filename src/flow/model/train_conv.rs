@@ -20,8 +20,8 @@ use burn::prelude::*;
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 
-use super::flex_bridge::{Ad, AdT, plain, primitive};
-use super::host_conv::{conv2d_forward, conv2d_weight_grad};
+use super::flex_bridge::{Ad, AdT, HostView, from_host};
+use super::host_conv::{conv_host, weight_grad_host};
 
 /// `conv2d(x, weight, bias, options)` under autodiff, through the host kernels when the
 /// convolution and the device allow it (see the module notes), else burn's `conv2d`.
@@ -66,37 +66,82 @@ pub fn conv2d_train(
 ///
 /// # Shapes
 /// `[B, C, H', W']` → `[B, C, (H' − 1)·sy + 1, (W' − 1)·sx + 1]`
-fn stuff(g: Tensor<4>, [sy, sx]: [usize; 2]) -> Tensor<4> {
-    if sy == 1 && sx == 1 {
-        return g;
-    }
-    let [b, c, ho, wo] = g.dims();
+fn stuff(g: &[f32], [b, c, ho, wo]: [usize; 4], [sy, sx]: [usize; 2]) -> (Vec<f32>, [usize; 4]) {
     let (h1, w1) = ((ho.max(1) - 1) * sy + 1, (wo.max(1) - 1) * sx + 1);
-    let device = g.device();
-    let Ok(v) = g.clone().into_data().try_into_vec::<f32>() else {
-        // Not f32: spread with tensor operations.
-        let z = Tensor::<4>::zeros([b, c, h1, w1], &device);
-        let mut out = z;
-        for y in 0..ho {
-            for x in 0..wo {
-                let cell = g.clone().slice([0..b, 0..c, y..y + 1, x..x + 1]);
-                out = out.slice_assign([0..b, 0..c, y * sy..y * sy + 1, x * sx..x * sx + 1], cell);
-            }
-        }
-        return out;
-    };
     let mut out = vec![0f32; b * c * h1 * w1];
-    for (plane, src) in out.chunks_exact_mut(h1 * w1).zip(v.chunks_exact(ho * wo)) {
-        for y in 0..ho {
-            for x in 0..wo {
-                plane[y * sy * w1 + x * sx] = src[y * wo + x];
+    for (plane, src) in out.chunks_exact_mut(h1 * w1).zip(g.chunks_exact(ho * wo)) {
+        for (y, row) in src.chunks_exact(wo).enumerate() {
+            for (x, &v) in row.iter().enumerate() {
+                plane[y * sy * w1 + x * sx] = v;
             }
         }
     }
-    Tensor::from_data(TensorData::new(out, [b, c, h1, w1]), &device)
+    (out, [b, c, h1, w1])
 }
 
-/// The bias-free convolution as one tracked operation.
+/// The kernel of the transposed convolution: `W̃[c, o, y, x] = W[o, c, kh−1−y, kw−1−x]`.
+///
+/// # Shapes
+/// `[Cout, Cin, kh, kw]` → `[Cin, Cout, kh, kw]`
+fn flip_transpose(w: &[f32], [cout, cin, kh, kw]: [usize; 4]) -> Vec<f32> {
+    let taps = kh * kw;
+    let mut out = vec![0f32; w.len()];
+    for (o, kernels) in w.chunks_exact(cin * taps).enumerate() {
+        for (c, kernel) in kernels.chunks_exact(taps).enumerate() {
+            let dst = &mut out[(c * cout + o) * taps..][..taps];
+            for (d, &v) in dst.iter_mut().rev().zip(kernel) {
+                *d = v;
+            }
+        }
+    }
+    out
+}
+
+/// `∂L/∂x` of a convolution with `options`, from its output gradient `g` `[B, Cout, H', W']`,
+/// its kernel `w` `[Cout, Cin, kh, kw]` and its input size `[H, W]`: the convolution of the
+/// (stride-spread) gradient by the flipped, transposed kernel with the padding mirrored.
+///
+/// # Shapes
+/// → `[B, Cin, H, W]`
+fn input_grad(
+    g: &[f32],
+    gs: [usize; 4],
+    w: &[f32],
+    [cout, cin, kh, kw]: [usize; 4],
+    [h, w_in]: [usize; 2],
+    options: &ConvOptions<2>,
+) -> (Vec<f32>, [usize; 4]) {
+    let [dy, dx] = options.dilation;
+    let (py, px) = (dy * (kh - 1), dx * (kw - 1));
+    // Input rows and columns past the last window (stride > 1) get zero gradient from extra end
+    // padding.
+    let [sy, sx] = options.stride;
+    let extra =
+        |size: usize, (p0, p1): (usize, usize), span: usize, s: usize| (size + p0 + p1 - span) % s;
+    let (ey, ex) = (
+        extra(h, options.padding[0], py + 1, sy),
+        extra(w_in, options.padding[1], px + 1, sx),
+    );
+    let mirrored = ConvOptions::new_with_padding(
+        [1, 1],
+        [
+            (py - options.padding[0].0, py - options.padding[0].1 + ey),
+            (px - options.padding[1].0, px - options.padding[1].1 + ex),
+        ],
+        options.dilation,
+        1,
+    );
+    let wt = flip_transpose(w, [cout, cin, kh, kw]);
+    let ws = [cin, cout, kh, kw];
+    if sy == 1 && sx == 1 {
+        conv_host(g, gs, &wt, ws, None, &mirrored)
+    } else {
+        let (spread, ss) = stuff(g, gs, [sy, sx]);
+        conv_host(&spread, ss, &wt, ws, None, &mirrored)
+    }
+}
+
+/// The bias-free convolution as one tracked operation (f32 operands, checked by the caller).
 fn host_conv_op(x: AdT, w: AdT, options: ConvOptions<2>) -> AdT {
     #[derive(Debug)]
     struct HostConv;
@@ -111,57 +156,33 @@ fn host_conv_op(x: AdT, w: AdT, options: ConvOptions<2>) -> AdT {
             checkpointer: &mut Checkpointer,
         ) {
             let [node_x, node_w] = ops.parents;
-            let grad = plain::<4>(grads.consume::<Flex>(&ops.node));
+            let g = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
             let (x_state, w_state, options) = ops.state;
-            let x = plain::<4>(checkpointer.retrieve_node_output(x_state));
-            let w = plain::<4>(checkpointer.retrieve_node_output(w_state));
-            let [_, _, kh, kw] = w.dims();
+            let x = HostView::<4>::new(checkpointer.retrieve_node_output(x_state));
+            let w = HostView::<4>::new(checkpointer.retrieve_node_output(w_state));
+            let [cout, _, kh, kw] = w.dims;
             if let Some(node) = node_x {
-                let [_, _, h, w_in] = x.dims();
-                let [dy, dx] = options.dilation;
-                let (py, px) = (dy * (kh - 1), dx * (kw - 1));
-                // Input rows and columns past the last window (stride > 1) get zero gradient
-                // from extra end padding.
-                let [sy, sx] = options.stride;
-                let extra = |size: usize, (p0, p1): (usize, usize), span: usize, s: usize| {
-                    (size + p0 + p1 - span) % s
-                };
-                let (ey, ex) = (
-                    extra(h, options.padding[0], py + 1, sy),
-                    extra(w_in, options.padding[1], px + 1, sx),
-                );
-                let mirrored = ConvOptions::new_with_padding(
-                    [1, 1],
-                    [
-                        (py - options.padding[0].0, py - options.padding[0].1 + ey),
-                        (px - options.padding[1].0, px - options.padding[1].1 + ex),
-                    ],
-                    options.dilation,
-                    1,
-                );
-                let wt = w.clone().swap_dims(0, 1).flip([2, 3]); // [Cin, Cout, kh, kw]
-                let dx = conv2d_forward(stuff(grad.clone(), [sy, sx]), wt, None, mirrored);
-                grads.register::<Flex>(node.id, primitive(dx));
+                let [_, _, h, w_in] = x.dims;
+                let (dx, shape) =
+                    input_grad(g.values(), g.dims, w.values(), w.dims, [h, w_in], &options);
+                debug_assert_eq!(shape, x.dims);
+                grads.register::<Flex>(node.id, from_host(dx, x.dims));
             }
             if let Some(node) = node_w {
-                let dw = conv2d_weight_grad(x.clone(), grad.clone(), [kh, kw], &options)
-                    .unwrap_or_else(|| {
-                        // Not reachable for the f32 tensors this operation accepts; burn's
-                        // formula keeps the gradient right if it ever is.
-                        burn::tensor::module::conv2d_weight_backward(x, w, grad, options)
-                    });
-                grads.register::<Flex>(node.id, primitive(dw));
+                let dw =
+                    weight_grad_host(x.values(), x.dims, g.values(), [cout, kh, kw], &options);
+                grads.register::<Flex>(node.id, from_host(dw, w.dims));
             }
         }
     }
 
-    let forward = |x: &AdT, w: &AdT, options: ConvOptions<2>| {
-        primitive(conv2d_forward(
-            plain::<4>(x.primitive().clone()),
-            plain::<4>(w.primitive().clone()),
-            None,
-            options,
-        ))
+    let forward = |x: &AdT, w: &AdT, options: &ConvOptions<2>| {
+        let (xv, wv) = (
+            HostView::<4>::new(x.primitive().clone()),
+            HostView::<4>::new(w.primitive().clone()),
+        );
+        let (y, shape) = conv_host(xv.values(), xv.dims, wv.values(), wv.dims, None, options);
+        from_host(y, shape)
     };
     match HostConv
         .prepare::<NoCheckpointing>([x.node(), w.node()])
@@ -171,10 +192,10 @@ fn host_conv_op(x: AdT, w: AdT, options: ConvOptions<2>) -> AdT {
         OpsKind::Tracked(mut prep) => {
             let x_state = prep.checkpoint(&x);
             let w_state = prep.checkpoint(&w);
-            let y = forward(&x, &w, options.clone());
+            let y = forward(&x, &w, &options);
             prep.finish((x_state, w_state, options), y)
         }
-        OpsKind::UnTracked(prep) => prep.finish(forward(&x, &w, options)),
+        OpsKind::UnTracked(prep) => prep.finish(forward(&x, &w, &options)),
     }
 }
 
