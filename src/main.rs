@@ -72,7 +72,20 @@ fn main() {
         unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
     }
     let cli = Cli::parse();
-    let result = match cli.command {
+    // The command runs on a worker thread of rayon's pool. Each parallel kernel it calls (a
+    // convolution, a lookup) then splits its work among the workers directly; called from outside
+    // the pool, every call would be handed over to the pool and the calling thread parked until it
+    // ends: a training step of mms-small measured 368 ms and 83 k context switches per 13 steps
+    // that way, against 297 ms and 11 k on a worker.
+    let result = rayon::scope(|_| run(cli.command));
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Generate(a) => generate(a),
         Command::Simulate(a) => simulate(a),
         Command::Psf(a) => psf(a),
@@ -86,9 +99,5 @@ fn main() {
         Command::Optics(c) => optics(c),
         Command::Array(c) => array(c),
         Command::Track(a) => track(a),
-    };
-    if let Err(e) = result {
-        eprintln!("error: {e:#}");
-        std::process::exit(1);
     }
 }

@@ -224,7 +224,10 @@ fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
     let run = |level: &AdT| {
         let v = HostView::<3>::new(level.primitive().clone());
         let k = win.k();
-        from_host(win.forward(v.values(), &coords), [win.b, k * k, win.h, win.w])
+        from_host(
+            win.forward(v.values(), &coords),
+            [win.b, k * k, win.h, win.w],
+        )
     };
     match HostLookup
         .prepare::<NoCheckpointing>([level.node()])

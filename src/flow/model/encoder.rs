@@ -10,7 +10,7 @@ use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
 
 use super::blocks::{Norm, ResidualBlock, conv};
 use super::config::NormKind;
-use super::host_conv::conv_forward;
+use super::host_conv::{Act, conv_act, conv_forward};
 
 /// Bilinear resize to `[h, w]` with PyTorch's `align_corners = false` (burn's default is true).
 pub fn resize(x: Tensor<4>, h: usize, w: usize) -> Tensor<4> {
@@ -89,11 +89,11 @@ impl Daspp {
     /// `[B, C, H, W]` → `[B, Cout, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let [b, c, h, w] = x.dims();
-        let mut branches = vec![relu(conv_forward(&self.point, x.clone()))];
+        let mut branches = vec![conv_act(&self.point, x.clone(), Act::Relu)];
         for a in &self.atrous {
-            branches.push(relu(conv_forward(a, x.clone())));
+            branches.push(conv_act(a, x.clone(), Act::Relu));
         }
-        let g = relu(conv_forward(&self.global, x.mean_dim(2).mean_dim(3))); // [B, C, 1, 1]
+        let g = conv_act(&self.global, x.mean_dim(2).mean_dim(3), Act::Relu); // [B, C, 1, 1]
         branches.push(g.expand([b, c, h, w]));
         self.norm
             .forward(conv_forward(&self.fuse, Tensor::cat(branches, 1)))

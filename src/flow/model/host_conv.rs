@@ -18,6 +18,7 @@ use burn::nn::PaddingConfig2d;
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
 use burn::tensor::DType;
+use burn::tensor::activation::{relu, sigmoid, tanh};
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 use rayon::prelude::*;
@@ -30,19 +31,70 @@ use super::train_conv::conv2d_train;
 /// stay in cache.
 const BAND_FLOATS: usize = 1 << 19;
 
+/// The activation that follows a convolution, applied inside the same operation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Act {
+    Identity,
+    Relu,
+    Sigmoid,
+    Tanh,
+}
+
+impl Act {
+    /// In place on host values.
+    pub fn apply(self, y: &mut [f32]) {
+        match self {
+            Act::Identity => {}
+            Act::Relu => y.iter_mut().for_each(|v| *v = v.max(0.0)),
+            Act::Sigmoid => y.iter_mut().for_each(|v| *v = 1.0 / (1.0 + (-*v).exp())),
+            Act::Tanh => y.iter_mut().for_each(|v| *v = v.tanh()),
+        }
+    }
+
+    /// `g · act′`, with the derivative read from the activation's output `y`.
+    pub fn backward(self, y: &[f32], g: &[f32]) -> Vec<f32> {
+        let each = |d: fn(f32, f32) -> f32| y.iter().zip(g).map(|(&y, &g)| d(y, g)).collect();
+        match self {
+            Act::Identity => g.to_vec(),
+            Act::Relu => each(|y, g| if y > 0.0 { g } else { 0.0 }),
+            Act::Sigmoid => each(|y, g| g * y * (1.0 - y)),
+            Act::Tanh => each(|y, g| g * (1.0 - y * y)),
+        }
+    }
+
+    /// On a tensor, with burn's activations (any device, differentiable).
+    pub fn apply_tensor(self, t: Tensor<4>) -> Tensor<4> {
+        match self {
+            Act::Identity => t,
+            Act::Relu => relu(t),
+            Act::Sigmoid => sigmoid(t),
+            Act::Tanh => tanh(t),
+        }
+    }
+}
+
 /// `c.forward(x)`, on the host kernel when `x` lives on the non-autodiff CPU device.
 ///
 /// # Shapes
 /// `[B, Cin, H, W]` → `[B, Cout, H', W']`
 pub fn conv_forward(c: &Conv2d, x: Tensor<4>) -> Tensor<4> {
+    conv_act(c, x, Act::Identity)
+}
+
+/// `act(c.forward(x))`: the layer and its activation as one operation on the CPU backend.
+///
+/// # Shapes
+/// `[B, Cin, H, W]` → `[B, Cout, H', W']`
+pub fn conv_act(c: &Conv2d, x: Tensor<4>, act: Act) -> Tensor<4> {
     match c.padding {
-        PaddingConfig2d::Explicit(top, left, bottom, right) if c.groups == 1 => conv2d_forward(
+        PaddingConfig2d::Explicit(top, left, bottom, right) if c.groups == 1 => conv2d_act(
             x,
             c.weight.val(),
             c.bias.as_ref().map(|b| b.val()),
             ConvOptions::new_with_padding(c.stride, [(top, bottom), (left, right)], c.dilation, 1),
+            act,
         ),
-        _ => c.forward(x),
+        _ => act.apply_tensor(c.forward(x)),
     }
 }
 
@@ -58,8 +110,19 @@ pub fn conv2d_forward(
     bias: Option<Tensor<1>>,
     options: ConvOptions<2>,
 ) -> Tensor<4> {
+    conv2d_act(x, weight, bias, options, Act::Identity)
+}
+
+/// `act(conv2d(x, weight, bias, options))`, as [`conv2d_forward`] with the activation inside.
+pub fn conv2d_act(
+    x: Tensor<4>,
+    weight: Tensor<4>,
+    bias: Option<Tensor<1>>,
+    options: ConvOptions<2>,
+    act: Act,
+) -> Tensor<4> {
     if x.is_autodiff() || weight.is_autodiff() {
-        return conv2d_train(x, weight, bias, options);
+        return conv2d_train(x, weight, bias, options, act);
     }
     let f32s = x.dtype() == DType::F32
         && weight.dtype() == DType::F32
@@ -69,19 +132,20 @@ pub fn conv2d_forward(
         && x.device() == Device::flex()
         && weight.dims()[1] == x.dims()[1];
     if !host {
-        return conv2d(x, weight, bias, options);
+        return act.apply_tensor(conv2d(x, weight, bias, options));
     }
     // Read in place; unreachable fallbacks for the CPU f32 tensors checked above.
     let (Some(xv), Some(wv)) = (HostView::of(x.clone()), HostView::of(weight.clone())) else {
-        return conv2d(x, weight, bias, options);
+        return act.apply_tensor(conv2d(x, weight, bias, options));
     };
     let bv = match bias.clone().map(HostView::of) {
         None => None,
         Some(Some(b)) => Some(b),
-        Some(None) => return conv2d(x, weight, bias, options),
+        Some(None) => return act.apply_tensor(conv2d(x, weight, bias, options)),
     };
     let bias = bv.as_ref().map(|b| b.values());
-    let (out, shape) = conv_host(xv.values(), xv.dims, wv.values(), wv.dims, bias, &options);
+    let (mut out, shape) = conv_host(xv.values(), xv.dims, wv.values(), wv.dims, bias, &options);
+    act.apply(&mut out);
     Tensor::from_data(TensorData::new(out, shape), &x.device())
 }
 

@@ -7,23 +7,28 @@
 //!   output gradient spread onto the stride-1 grid with zeros between);
 //! - `∂L/∂W = Σ ∂L/∂y(band) · cols(band)ᵀ`, the forward unfolding reused.
 //!
-//! The bias is added after, as an ordinary differentiable broadcast. Grouped convolutions,
-//! padding wider than the kernel's reach, other devices and other dtypes keep burn's `conv2d`.
+//! - `∂L/∂b = Σ ∂L/∂y` over images and pixels.
+//!
+//! The bias and the activation that follows the layer ([`Act`]: ReLU, σ or tanh) belong to the
+//! same operation: the output is `act(W ⋆ x + b)`, and the backward pass first multiplies the
+//! output gradient by `act′`, read from the saved output. That spares the graph a broadcast add
+//! and an activation per layer, forward and backward. Grouped convolutions, padding wider than
+//! the kernel's reach, other devices and other dtypes keep burn's `conv2d` and activations.
 
 use burn::backend::Flex;
 use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
-use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind, OpsPrep};
 use burn::prelude::*;
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::ConvOptions;
 
-use super::flex_bridge::{Ad, AdT, HostView, from_host};
-use super::host_conv::{conv_host, weight_grad_host};
+use super::flex_bridge::{Ad, AdT, FlexT, HostView, from_host};
+use super::host_conv::{Act, conv_host, weight_grad_host};
 
-/// `conv2d(x, weight, bias, options)` under autodiff, through the host kernels when the
+/// `act(conv2d(x, weight, bias, options))` under autodiff, through the host kernels when the
 /// convolution and the device allow it (see the module notes), else burn's `conv2d`.
 ///
 /// # Shapes
@@ -33,32 +38,35 @@ pub fn conv2d_train(
     weight: Tensor<4>,
     bias: Option<Tensor<1>>,
     options: ConvOptions<2>,
+    act: Act,
 ) -> Tensor<4> {
     let [_, _, kh, kw] = weight.dims();
     let [dy, dx] = options.dilation;
     let mirrored = options.padding[0].0.max(options.padding[0].1) <= dy * (kh - 1)
         && options.padding[1].0.max(options.padding[1].1) <= dx * (kw - 1);
+    let f32 = |dtype: burn::tensor::DType| dtype == burn::tensor::DType::F32;
     let suitable = options.groups == 1
         && mirrored
         && x.dims()[1] == weight.dims()[1]
-        && x.dtype() == burn::tensor::DType::F32
-        && weight.dtype() == burn::tensor::DType::F32;
+        && f32(x.dtype())
+        && f32(weight.dtype())
+        && bias.as_ref().is_none_or(|b| f32(b.dtype()));
     if suitable
         && let (Ok(xp), Ok(wp)) = (
             x.clone().try_into_primitive::<Ad>(),
             weight.clone().try_into_primitive::<Ad>(),
         )
     {
-        let y = Tensor::<4>::from_primitive::<Ad>(host_conv_op(xp, wp, options));
-        return match bias {
-            Some(b) => {
-                let c = b.dims()[0];
-                y + b.reshape([1, c, 1, 1])
-            }
-            None => y,
+        let bp = match bias.clone().map(|b| b.try_into_primitive::<Ad>()) {
+            None => Some(None),
+            Some(Ok(b)) => Some(Some(b)),
+            Some(Err(_)) => None,
         };
+        if let Some(bp) = bp {
+            return Tensor::<4>::from_primitive::<Ad>(host_conv_op(xp, wp, bp, options, act));
+        }
     }
-    conv2d(x, weight, bias, options)
+    act.apply_tensor(conv2d(x, weight, bias, options))
 }
 
 /// The output gradient of a strided convolution spread back onto the stride-1 grid, zeros in
@@ -141,61 +149,120 @@ fn input_grad(
     }
 }
 
-/// The bias-free convolution as one tracked operation (f32 operands, checked by the caller).
-fn host_conv_op(x: AdT, w: AdT, options: ConvOptions<2>) -> AdT {
-    #[derive(Debug)]
-    struct HostConv;
+/// What the backward pass of [`host_conv_op`] keeps: the input and kernel nodes, the options,
+/// the activation and, when it has a derivative other than 1, the output it reads `act′` from.
+#[derive(Clone, Debug)]
+struct ConvState {
+    x: NodeId,
+    w: NodeId,
+    options: ConvOptions<2>,
+    act: Act,
+    y: Option<FlexT>,
+}
 
-    impl Backward<Flex, 2> for HostConv {
-        type State = (NodeId, NodeId, ConvOptions<2>);
+#[derive(Debug)]
+struct HostConv;
 
-        fn backward(
-            self,
-            ops: Ops<Self::State, 2>,
-            grads: &mut Gradients,
-            checkpointer: &mut Checkpointer,
-        ) {
-            let [node_x, node_w] = ops.parents;
-            let g = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
-            let (x_state, w_state, options) = ops.state;
-            let x = HostView::<4>::new(checkpointer.retrieve_node_output(x_state));
-            let w = HostView::<4>::new(checkpointer.retrieve_node_output(w_state));
-            let [cout, _, kh, kw] = w.dims;
-            if let Some(node) = node_x {
-                let [_, _, h, w_in] = x.dims;
-                let (dx, shape) =
-                    input_grad(g.values(), g.dims, w.values(), w.dims, [h, w_in], &options);
-                debug_assert_eq!(shape, x.dims);
-                grads.register::<Flex>(node.id, from_host(dx, x.dims));
+/// Parents: input, kernel, and the bias when `N` is 3.
+impl<const N: usize> Backward<Flex, N> for HostConv {
+    type State = ConvState;
+
+    fn backward(
+        self,
+        ops: Ops<Self::State, N>,
+        grads: &mut Gradients,
+        checkpointer: &mut Checkpointer,
+    ) {
+        let (node_x, node_w) = (ops.parents[0].clone(), ops.parents[1].clone());
+        let node_b = ops.parents.get(2).cloned().flatten();
+        let g = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
+        let state = ops.state;
+        let x = HostView::<4>::new(checkpointer.retrieve_node_output(state.x));
+        let w = HostView::<4>::new(checkpointer.retrieve_node_output(state.w));
+        // ∂L/∂(W ⋆ x + b) = ∂L/∂y · act′, from the saved output.
+        let scaled: Option<Vec<f32>> = state.y.map(|y| {
+            let y = HostView::<4>::new(y);
+            state.act.backward(y.values(), g.values())
+        });
+        let g_pre = scaled.as_deref().unwrap_or(g.values());
+        let [cout, _, kh, kw] = w.dims;
+        if let Some(node) = node_x {
+            let [_, _, h, w_in] = x.dims;
+            let (dx, shape) =
+                input_grad(g_pre, g.dims, w.values(), w.dims, [h, w_in], &state.options);
+            debug_assert_eq!(shape, x.dims);
+            grads.register::<Flex>(node.id, from_host(dx, x.dims));
+        }
+        if let Some(node) = node_w {
+            let dw = weight_grad_host(x.values(), x.dims, g_pre, [cout, kh, kw], &state.options);
+            grads.register::<Flex>(node.id, from_host(dw, w.dims));
+        }
+        if let Some(node) = node_b {
+            let hw = g.dims[2] * g.dims[3];
+            let mut db = vec![0f32; cout];
+            for (i, plane) in g_pre.chunks_exact(hw.max(1)).enumerate() {
+                db[i % cout] += plane.iter().sum::<f32>();
             }
-            if let Some(node) = node_w {
-                let dw =
-                    weight_grad_host(x.values(), x.dims, g.values(), [cout, kh, kw], &options);
-                grads.register::<Flex>(node.id, from_host(dw, w.dims));
-            }
+            grads.register::<Flex>(node.id, from_host(db, [cout]));
         }
     }
+}
 
-    let forward = |x: &AdT, w: &AdT, options: &ConvOptions<2>| {
+/// `act(W ⋆ x + b)` as one tracked operation (f32 operands, checked by the caller).
+fn host_conv_op(x: AdT, w: AdT, b: Option<AdT>, options: ConvOptions<2>, act: Act) -> AdT {
+    let forward = |x: &AdT, w: &AdT, b: Option<&AdT>| {
         let (xv, wv) = (
             HostView::<4>::new(x.primitive().clone()),
             HostView::<4>::new(w.primitive().clone()),
         );
-        let (y, shape) = conv_host(xv.values(), xv.dims, wv.values(), wv.dims, None, options);
+        let bv = b.map(|b| HostView::<1>::new(b.primitive().clone()));
+        let bias = bv.as_ref().map(|b| b.values());
+        let (mut y, shape) = conv_host(xv.values(), xv.dims, wv.values(), wv.dims, bias, &options);
+        act.apply(&mut y);
         from_host(y, shape)
     };
-    match HostConv
-        .prepare::<NoCheckpointing>([x.node(), w.node()])
-        .compute_bound()
-        .stateful()
-    {
+    let y = forward(&x, &w, b.as_ref());
+    match b {
+        Some(b) => track(
+            HostConv.prepare::<NoCheckpointing>([x.node(), w.node(), b.node()]),
+            &x,
+            &w,
+            options,
+            act,
+            y,
+        ),
+        None => track(
+            HostConv.prepare::<NoCheckpointing>([x.node(), w.node()]),
+            &x,
+            &w,
+            options,
+            act,
+            y,
+        ),
+    }
+}
+
+/// Registers the computed output `y` with the graph (and what its backward pass needs).
+fn track<const N: usize>(
+    prep: OpsPrep<HostConv, Flex, ConvState, NoCheckpointing, N>,
+    x: &AdT,
+    w: &AdT,
+    options: ConvOptions<2>,
+    act: Act,
+    y: FlexT,
+) -> AdT {
+    match prep.compute_bound().stateful() {
         OpsKind::Tracked(mut prep) => {
-            let x_state = prep.checkpoint(&x);
-            let w_state = prep.checkpoint(&w);
-            let y = forward(&x, &w, &options);
-            prep.finish((x_state, w_state, options), y)
+            let state = ConvState {
+                x: prep.checkpoint(x),
+                w: prep.checkpoint(w),
+                options,
+                act,
+                y: (act != Act::Identity).then(|| y.clone()),
+            };
+            prep.finish(state, y)
         }
-        OpsKind::UnTracked(prep) => prep.finish(forward(&x, &w, &options)),
+        OpsKind::UnTracked(prep) => prep.finish(y),
     }
 }
 
@@ -204,20 +271,26 @@ mod tests {
     use super::*;
     use burn::tensor::Distribution;
 
-    /// Output and gradients (input, weight, bias) equal those of burn's convolution, for a
-    /// padded 3×3, a dilated one wider than the map, a 7×7, a 1×1 and strided ones, with a loss
-    /// that weights every output differently.
+    /// Output and gradients (input, weight, bias) equal those of burn's convolution and
+    /// activation, for a padded 3×3, a dilated one wider than the map, a 7×7, a 1×1 and strided
+    /// ones, each activation, with a loss that weights every output differently.
     #[test]
     fn host_training_convolution_matches_burn() {
+        let acts = [Act::Identity, Act::Relu, Act::Sigmoid, Act::Tanh];
         // (cin, cout, k, dilation, pad, h, w, batch)
-        for (cin, cout, k, d, p, h, w, b) in [
+        for (i, (cin, cout, k, d, p, h, w, b)) in [
             (5, 7, 3, 1, 1, 9, 11, 2),
             (6, 4, 3, 6, 6, 5, 7, 1),
             (2, 8, 7, 1, 3, 10, 12, 2),
             (9, 5, 1, 1, 0, 6, 8, 2),
             (16, 24, 3, 1, 1, 40, 52, 1),
-        ] {
-            check(cin, cout, k, d, p, 1, h, w, b);
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            for act in acts {
+                check(cin, cout, k, d, p, 1, h, w, b, act, i % 2 == 0);
+            }
         }
         // Strided: the stem, the downsampling 3×3 and the 1×1 projection, on even and odd sizes.
         for (cin, cout, k, p, h, w) in [
@@ -225,7 +298,7 @@ mod tests {
             (6, 9, 3, 1, 11, 14),
             (5, 7, 1, 0, 9, 12),
         ] {
-            check(cin, cout, k, 1, p, 2, h, w, 2);
+            check(cin, cout, k, 1, p, 2, h, w, 2, Act::Relu, true);
         }
     }
 
@@ -240,6 +313,8 @@ mod tests {
         h: usize,
         w: usize,
         b: usize,
+        act: Act,
+        with_bias: bool,
     ) {
         let dev = Device::flex().autodiff();
         {
@@ -263,10 +338,11 @@ mod tests {
                     w0.clone().detach().require_grad(),
                     b0.clone().detach().require_grad(),
                 );
+                let b_in = with_bias.then(|| bias.clone());
                 let y = if host {
-                    conv2d_train(x.clone(), wt.clone(), Some(bias.clone()), opts.clone())
+                    conv2d_train(x.clone(), wt.clone(), b_in, opts.clone(), act)
                 } else {
-                    conv2d(x.clone(), wt.clone(), Some(bias.clone()), opts.clone())
+                    act.apply_tensor(conv2d(x.clone(), wt.clone(), b_in, opts.clone()))
                 };
                 let g = (y.clone() * weights.clone()).sum().backward();
                 let grad = |t: &Tensor<4>| t.grad(&g).expect("gradient");
@@ -274,7 +350,8 @@ mod tests {
                     y.inner(),
                     grad(&x),
                     grad(&wt),
-                    bias.grad(&g).expect("bias gradient"),
+                    bias.grad(&g)
+                        .unwrap_or_else(|| Tensor::zeros([cout], &Device::flex())),
                 )
             };
             let (ya, gxa, gwa, gba) = run(true);
@@ -284,7 +361,7 @@ mod tests {
                 let diff: f32 = (a - b).abs().max().into_scalar();
                 assert!(
                     diff <= 1e-4 * scale.max(1.0),
-                    "{cin}->{cout} k{k} d{d} s{s}: {what} off by {diff}"
+                    "{cin}->{cout} k{k} d{d} s{s} {act:?} bias {with_bias}: {what} off by {diff}"
                 );
             };
             close(ya, yb, "output");

@@ -4,12 +4,13 @@
 
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
-use burn::tensor::activation::{relu, sigmoid, tanh};
+use burn::tensor::activation::{sigmoid, tanh};
 use burn::tensor::ops::ConvOptions;
 
 use super::blocks::{bias_or_zeros, conv};
 use super::config::MmsConfig;
-use super::host_conv::{conv_forward, conv2d_forward};
+use super::host_conv::Act::{Relu, Sigmoid, Tanh};
+use super::host_conv::{conv_act, conv_forward, conv2d_act, conv2d_forward};
 
 /// Encodes (correlation, flow) into motion features, keeping the flow itself as two channels.
 #[derive(Module, Debug)]
@@ -36,15 +37,9 @@ impl MotionEncoder {
     /// # Shapes
     /// `corr`: `[B, L·k², H, W]`, `flow`: `[B, 2, H, W]` → `[B, motion_dims[2], H, W]`
     pub fn forward(&self, corr: Tensor<4>, flow: Tensor<4>) -> Tensor<4> {
-        let c = relu(conv_forward(
-            &self.corr2,
-            relu(conv_forward(&self.corr1, corr)),
-        ));
-        let f = relu(conv_forward(
-            &self.flow2,
-            relu(conv_forward(&self.flow1, flow.clone())),
-        ));
-        let m = relu(conv_forward(&self.out, Tensor::cat(vec![c, f], 1)));
+        let c = conv_act(&self.corr2, conv_act(&self.corr1, corr, Relu), Relu);
+        let f = conv_act(&self.flow2, conv_act(&self.flow1, flow.clone(), Relu), Relu);
+        let m = conv_act(&self.out, Tensor::cat(vec![c, f], 1), Relu);
         Tensor::cat(vec![m, flow], 1)
     }
 }
@@ -83,7 +78,7 @@ impl ConvGru {
         if h.is_autodiff() {
             // Training: the equations as written, z and r from one stacked convolution.
             let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
-            let zr = sigmoid(conv2d_forward(
+            let zr = conv2d_act(
                 hx,
                 Tensor::cat(vec![self.convz.weight.val(), self.convr.weight.val()], 0),
                 Some(Tensor::cat(
@@ -91,13 +86,11 @@ impl ConvGru {
                     0,
                 )),
                 same.clone(),
-            ));
+                Sigmoid,
+            );
             let z = zr.clone().narrow(1, 0, ch);
             let r = zr.narrow(1, ch, ch);
-            let q = tanh(conv_forward(
-                &self.convq,
-                Tensor::cat(vec![r * h.clone(), x], 1),
-            ));
+            let q = conv_act(&self.convq, Tensor::cat(vec![r * h.clone(), x], 1), Tanh);
             return (z.clone().neg() + 1.0) * h + z * q;
         }
         // Kernels [Ch, Ch + Cx, 3, 3] split into their h part [Ch, Ch, 3, 3] and x part.
@@ -168,13 +161,13 @@ impl UpdateBlock {
             .gru
             .forward(hidden, Tensor::cat(vec![context, motion], 1));
         if !with_mask {
-            let delta = conv_forward(&self.flow2, relu(conv_forward(&self.flow1, hidden.clone())));
+            let delta = conv_forward(&self.flow2, conv_act(&self.flow1, hidden.clone(), Relu));
             return (hidden, delta, None);
         }
         // Both heads open with a 3×3 convolution of the hidden state: one convolution with the
         // two kernels stacked, split after.
         let head = self.flow1.weight.dims()[0];
-        let both = relu(conv2d_forward(
+        let both = conv2d_act(
             hidden.clone(),
             Tensor::cat(vec![self.flow1.weight.val(), self.mask1.weight.val()], 0),
             Some(Tensor::cat(
@@ -182,7 +175,8 @@ impl UpdateBlock {
                 0,
             )),
             ConvOptions::new([1, 1], [1, 1], [1, 1], 1),
-        )); // [B, 2·head, H, W]
+            Relu,
+        ); // [B, 2·head, H, W]
         let delta = conv_forward(&self.flow2, both.clone().narrow(1, 0, head));
         // RAFT scales the mask logits by 1/4 to balance their gradients against the flow's.
         let mask = Some(conv_forward(&self.mask2, both.narrow(1, head, head)).mul_scalar(0.25));
@@ -194,6 +188,7 @@ impl UpdateBlock {
 mod tests {
     use super::*;
     use burn::tensor::Distribution;
+    use burn::tensor::activation::relu;
 
     /// The stacked-kernel heads give what the two heads give one by one.
     #[test]

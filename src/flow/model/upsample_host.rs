@@ -223,7 +223,10 @@ fn upsample_op(flow: AdT, mask: AdT) -> AdT {
         let f = HostView::<4>::new(flow.primitive().clone());
         let m = HostView::<4>::new(mask.primitive().clone());
         let [b, _, h, w] = f.dims;
-        from_host(forward(f.values(), m.values(), [b, h, w]), [b, 2, 8 * h, 8 * w])
+        from_host(
+            forward(f.values(), m.values(), [b, h, w]),
+            [b, 2, 8 * h, 8 * w],
+        )
     };
     match HostUpsample
         .prepare::<NoCheckpointing>([flow.node(), mask.node()])
