@@ -51,35 +51,79 @@ impl Window {
         )
     }
 
-    fn inside(&self, yy: i64, xx: i64) -> Option<usize> {
-        (yy >= 0 && xx >= 0 && (yy as usize) < self.hl && (xx as usize) < self.wl)
-            .then(|| yy as usize * self.wl + xx as usize)
+    /// The rows and columns of the level under the `(k+1)²` patch at `(y0, x0)`: the patch
+    /// index range `[lo, hi)` that lies inside `[0, size)`, for an anchor `a0`.
+    fn inside(a0: i64, k1: usize, size: usize) -> (usize, usize) {
+        let lo = (-a0).clamp(0, k1 as i64) as usize;
+        let hi = (size as i64 - a0).clamp(lo as i64, k1 as i64) as usize;
+        (lo, hi)
+    }
+
+    /// The `(k+1)²` values of `map` under the patch at `(y0, x0)`, zero outside the level.
+    fn gather(&self, map: &[f32], x0: i64, y0: i64, patch: &mut [f32]) {
+        let k1 = self.k() + 1;
+        let (r_lo, r_hi) = Self::inside(y0, k1, self.hl);
+        let (c_lo, c_hi) = Self::inside(x0, k1, self.wl);
+        patch.fill(0.0);
+        if c_lo == c_hi {
+            return;
+        }
+        for a in r_lo..r_hi {
+            let row = (y0 + a as i64) as usize * self.wl;
+            let first = row + (x0 + c_lo as i64) as usize;
+            patch[a * k1 + c_lo..a * k1 + c_hi].copy_from_slice(&map[first..first + c_hi - c_lo]);
+        }
+    }
+
+    /// Adds the `(k+1)²` patch at `(y0, x0)` onto `map`, dropping what falls outside the level.
+    fn scatter(&self, patch: &[f32], x0: i64, y0: i64, map: &mut [f32]) {
+        let k1 = self.k() + 1;
+        let (r_lo, r_hi) = Self::inside(y0, k1, self.hl);
+        let (c_lo, c_hi) = Self::inside(x0, k1, self.wl);
+        if c_lo == c_hi {
+            return;
+        }
+        for a in r_lo..r_hi {
+            let row = (y0 + a as i64) as usize * self.wl;
+            let first = row + (x0 + c_lo as i64) as usize;
+            for (m, v) in map[first..first + c_hi - c_lo]
+                .iter_mut()
+                .zip(&patch[a * k1 + c_lo..a * k1 + c_hi])
+            {
+                *m += v;
+            }
+        }
     }
 
     /// # Shapes
     /// `level` `[B·H·W, hl, wl]`, `coords` `[B, 2, H, W]` → `[B, (2r+1)², H, W]`
     fn forward(&self, level: &[f32], coords: &[f32]) -> Vec<f32> {
         let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
+        let k1 = k + 1;
         let mut windows = vec![0f32; self.b * hw * k * k];
-        windows
-            .par_chunks_mut(k * k)
-            .enumerate()
-            .for_each(|(n, dst)| {
+        windows.par_chunks_mut(k * k).enumerate().for_each_init(
+            || (vec![0f32; k1 * k1], vec![0f32; k1 * k]),
+            |(patch, across), (n, dst)| {
                 let (x0, y0, fx, fy) = self.anchor(coords, n);
-                let map = &level[n * m..(n + 1) * m];
-                let at = |yy: i64, xx: i64| self.inside(yy, xx).map_or(0.0, |i| map[i]);
+                self.gather(&level[n * m..(n + 1) * m], x0, y0, patch);
+                // Bilinear weights, separably: across each row of the patch, then down.
                 let (gx, gy) = (1.0 - fx, 1.0 - fy);
-                for i in 0..k {
-                    let yy = y0 + i as i64;
-                    for j in 0..k {
-                        let xx = x0 + j as i64;
-                        dst[i * k + j] = at(yy, xx) * (gy * gx)
-                            + at(yy, xx + 1) * (gy * fx)
-                            + at(yy + 1, xx) * (fy * gx)
-                            + at(yy + 1, xx + 1) * (fy * fx);
+                for (row, out) in patch.chunks_exact(k1).zip(across.chunks_exact_mut(k)) {
+                    for (j, o) in out.iter_mut().enumerate() {
+                        *o = gx * row[j] + fx * row[j + 1];
                     }
                 }
-            });
+                for (i, out) in dst.chunks_exact_mut(k).enumerate() {
+                    let (top, bottom) = (
+                        &across[i * k..(i + 1) * k],
+                        &across[(i + 1) * k..(i + 2) * k],
+                    );
+                    for ((o, t), b) in out.iter_mut().zip(top).zip(bottom) {
+                        *o = gy * t + fy * b;
+                    }
+                }
+            },
+        );
         // Pixel-major → channel-major per image.
         let mut out = vec![0f32; windows.len()];
         for bi in 0..self.b {
@@ -94,40 +138,39 @@ impl Window {
         out
     }
 
-    /// Gradient of the level given the gradient `g` `[B, (2r+1)², H, W]` of the window.
+    /// Gradient of the level given the gradient `g` `[B, (2r+1)², H, W]` of the window: the
+    /// forward pass's two interpolations transposed, then added onto the level.
     ///
     /// # Shapes
     /// → `[B·H·W, hl, wl]`
     fn backward(&self, coords: &[f32], g: &[f32]) -> Vec<f32> {
         let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
+        let k1 = k + 1;
         let mut dlevel = vec![0f32; self.b * hw * m];
-        dlevel
-            .par_chunks_mut(m.max(1))
-            .enumerate()
-            .for_each(|(n, map)| {
+        dlevel.par_chunks_mut(m.max(1)).enumerate().for_each_init(
+            || (vec![0f32; k1 * k1], vec![0f32; k1 * k]),
+            |(patch, across), (n, map)| {
                 let (bi, p) = (n / hw, n % hw);
                 let (x0, y0, fx, fy) = self.anchor(coords, n);
                 let (gx, gy) = (1.0 - fx, 1.0 - fy);
-                let mut add = |yy: i64, xx: i64, v: f32| {
-                    if let Some(i) = self.inside(yy, xx) {
-                        map[i] += v;
-                    }
-                };
+                across.fill(0.0);
                 for i in 0..k {
-                    let yy = y0 + i as i64;
                     for j in 0..k {
-                        let xx = x0 + j as i64;
                         let gv = g[(bi * k * k + i * k + j) * hw + p];
-                        if gv == 0.0 {
-                            continue;
-                        }
-                        add(yy, xx, gv * (gy * gx));
-                        add(yy, xx + 1, gv * (gy * fx));
-                        add(yy + 1, xx, gv * (fy * gx));
-                        add(yy + 1, xx + 1, gv * (fy * fx));
+                        across[i * k + j] += gy * gv;
+                        across[(i + 1) * k + j] += fy * gv;
                     }
                 }
-            });
+                patch.fill(0.0);
+                for (row, d) in patch.chunks_exact_mut(k1).zip(across.chunks_exact(k)) {
+                    for (j, &v) in d.iter().enumerate() {
+                        row[j] += gx * v;
+                        row[j + 1] += fx * v;
+                    }
+                }
+                self.scatter(patch, x0, y0, map);
+            },
+        );
         dlevel
     }
 }
