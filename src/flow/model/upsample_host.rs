@@ -46,35 +46,58 @@ pub fn convex_upsample_host(flow: &Tensor<4>, mask: &Tensor<4>) -> Option<Tensor
     ))
 }
 
-/// Softmax over the 9 logits of sub-pixel s at cell p.
-#[inline]
-fn weights(mask: &[f32], hw: usize, s: usize, p: usize) -> [f32; 9] {
-    let mut l: [f32; 9] = std::array::from_fn(|k| mask[(k * 64 + s) * hw + p]);
-    let m = l.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
-    let mut sum = 0.0;
-    for v in l.iter_mut() {
-        *v = (*v - m).exp();
-        sum += *v;
+/// The softmax weights of sub-pixel `s` for the cells of one coarse row: `wk[k·w + x]` over the
+/// 9 neighbours k, from the logits at channels `k·64 + s` (contiguous along the row).
+fn row_weights(mask: &[f32], hw: usize, s: usize, row: usize, w: usize, wk: &mut [f32]) {
+    let mut max = vec![f32::NEG_INFINITY; w];
+    for k in 0..9 {
+        let l = &mask[(k * 64 + s) * hw + row..][..w];
+        for (m, &v) in max.iter_mut().zip(l) {
+            *m = m.max(v);
+        }
     }
-    l.map(|v| v / sum)
+    let mut sum = vec![0f32; w];
+    for k in 0..9 {
+        let l = &mask[(k * 64 + s) * hw + row..][..w];
+        for (((e, &v), m), t) in wk[k * w..(k + 1) * w]
+            .iter_mut()
+            .zip(l)
+            .zip(&max)
+            .zip(&mut sum)
+        {
+            *e = (v - m).exp();
+            *t += *e;
+        }
+    }
+    for k in 0..9 {
+        for (e, t) in wk[k * w..(k + 1) * w].iter_mut().zip(&sum) {
+            *e /= t;
+        }
+    }
 }
 
-/// 8× the flow at the 9 neighbours of (y, x), zero outside the map.
-#[inline]
-fn neighbours(flow: &[f32], [h, w]: [usize; 2], y: usize, x: usize) -> [[f32; 9]; 2] {
-    std::array::from_fn(|d| {
-        std::array::from_fn(|k| {
-            let (yy, xx) = (
-                y as isize + (k / 3) as isize - 1,
-                x as isize + (k % 3) as isize - 1,
-            );
-            if yy < 0 || xx < 0 || yy >= h as isize || xx >= w as isize {
-                0.0
-            } else {
-                8.0 * flow[d * h * w + yy as usize * w + xx as usize]
+/// 8× the flow at the 9 neighbours of every cell of coarse row y, zero outside the map:
+/// `nb[(d·9 + k)·w + x]`.
+fn row_neighbours(flow: &[f32], [h, w]: [usize; 2], y: usize) -> Vec<f32> {
+    let mut nb = vec![0f32; 18 * w];
+    for d in 0..2 {
+        for k in 0..9 {
+            let yy = y as isize + (k / 3) as isize - 1;
+            if yy < 0 || yy >= h as isize {
+                continue;
             }
-        })
-    })
+            let src = &flow[d * h * w + yy as usize * w..][..w];
+            let dst = &mut nb[(d * 9 + k) * w..(d * 9 + k + 1) * w];
+            // Neighbour column x + kx − 1.
+            for (x, v) in dst.iter_mut().enumerate() {
+                let xx = x as isize + (k % 3) as isize - 1;
+                if xx >= 0 && xx < w as isize {
+                    *v = 8.0 * src[xx as usize];
+                }
+            }
+        }
+    }
+    nb
 }
 
 /// # Shapes
@@ -91,15 +114,18 @@ fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
                 &flow[bi * 2 * hw..(bi + 1) * 2 * hw],
                 &mask[bi * 576 * hw..(bi + 1) * 576 * hw],
             );
+            let nb = row_neighbours(f, [h, w], y);
+            let mut wk = vec![0f32; 9 * w];
             let mut rowbuf = vec![0f32; 2 * 8 * wf];
-            for x in 0..w {
-                let nb = neighbours(f, [h, w], y, x);
-                for s in 0..64 {
-                    let wk = weights(m, hw, s, y * w + x);
-                    let (i, j) = (s / 8, s % 8);
-                    for (d, nd) in nb.iter().enumerate() {
-                        let v: f32 = wk.iter().zip(nd).map(|(a, b)| a * b).sum();
-                        rowbuf[(d * 8 + i) * wf + 8 * x + j] = v;
+            for s in 0..64 {
+                row_weights(m, hw, s, y * w, w, &mut wk);
+                let (i, j) = (s / 8, s % 8);
+                for d in 0..2 {
+                    let dst = &mut rowbuf[(d * 8 + i) * wf..(d * 8 + i + 1) * wf];
+                    for x in 0..w {
+                        dst[8 * x + j] = (0..9)
+                            .map(|k| wk[k * w + x] * nb[(d * 9 + k) * w + x])
+                            .sum();
                     }
                 }
             }
@@ -127,45 +153,57 @@ fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Ve
     let mut dmask = vec![0f32; b * 576 * hw];
     // coef[b, d, k, p] = 8 Σ_s w_k(p, s) g_d(p, s): what neighbour k of cell p receives.
     let mut coef = vec![0f32; b * 2 * 9 * hw];
-    let cells: Vec<(usize, usize)> = (0..b)
-        .flat_map(|bi| (0..hw).map(move |p| (bi, p)))
-        .collect();
-    let per_cell: Vec<([f32; 576], [f32; 18])> = cells
+    // One task per image and coarse row: ∂L/∂mask `[576, w]` and coef `[18, w]` of its cells.
+    let rows: Vec<(usize, usize)> = (0..b).flat_map(|bi| (0..h).map(move |y| (bi, y))).collect();
+    let per_row: Vec<(Vec<f32>, Vec<f32>)> = rows
         .par_iter()
-        .map(|&(bi, p)| {
+        .map(|&(bi, y)| {
             let (f, m) = (
                 &flow[bi * 2 * hw..(bi + 1) * 2 * hw],
                 &mask[bi * 576 * hw..(bi + 1) * 576 * hw],
             );
-            let (y, x) = (p / w, p % w);
-            let nb = neighbours(f, [h, w], y, x);
-            let mut dm = [0f32; 576];
-            let mut cf = [0f32; 18];
+            let nb = row_neighbours(f, [h, w], y);
+            let mut wk = vec![0f32; 9 * w];
+            let mut dm = vec![0f32; 576 * w];
+            let mut cf = vec![0f32; 18 * w];
+            let (mut gd, mut t, mut wt) = (vec![0f32; 2 * w], vec![0f32; 9 * w], vec![0f32; w]);
             for s in 0..64 {
-                let wk = weights(m, hw, s, p);
+                row_weights(m, hw, s, y * w, w, &mut wk);
                 let (i, j) = (s / 8, s % 8);
-                let gd: [f32; 2] =
-                    std::array::from_fn(|d| g[((bi * 2 + d) * 8 * h + 8 * y + i) * wf + 8 * x + j]);
+                for d in 0..2 {
+                    let src = &g[((bi * 2 + d) * 8 * h + 8 * y + i) * wf..][..wf];
+                    for (x, v) in gd[d * w..(d + 1) * w].iter_mut().enumerate() {
+                        *v = src[8 * x + j];
+                    }
+                }
                 // t_k = ∂L/∂w_k; softmax: ∂L/∂l_k = w_k (t_k − Σ w t).
-                let t: [f32; 9] = std::array::from_fn(|k| gd[0] * nb[0][k] + gd[1] * nb[1][k]);
-                let wt: f32 = wk.iter().zip(&t).map(|(a, b)| a * b).sum();
+                wt.fill(0.0);
                 for k in 0..9 {
-                    dm[k * 64 + s] = wk[k] * (t[k] - wt);
-                    cf[k] += 8.0 * wk[k] * gd[0];
-                    cf[9 + k] += 8.0 * wk[k] * gd[1];
+                    for x in 0..w {
+                        let tk = gd[x] * nb[k * w + x] + gd[w + x] * nb[(9 + k) * w + x];
+                        t[k * w + x] = tk;
+                        wt[x] += wk[k * w + x] * tk;
+                    }
+                }
+                for k in 0..9 {
+                    let dst = &mut dm[(k * 64 + s) * w..(k * 64 + s + 1) * w];
+                    for x in 0..w {
+                        let wx = wk[k * w + x];
+                        dst[x] = wx * (t[k * w + x] - wt[x]);
+                        cf[k * w + x] += 8.0 * wx * gd[x];
+                        cf[(9 + k) * w + x] += 8.0 * wx * gd[w + x];
+                    }
                 }
             }
             (dm, cf)
         })
         .collect();
-    for ((bi, p), (dm, cf)) in cells.into_iter().zip(per_cell) {
-        for (ch, v) in dm.iter().enumerate() {
-            dmask[(bi * 576 + ch) * hw + p] = *v;
+    for ((bi, y), (dm, cf)) in rows.into_iter().zip(per_row) {
+        for (ch, src) in dm.chunks_exact(w).enumerate() {
+            dmask[(bi * 576 + ch) * hw + y * w..][..w].copy_from_slice(src);
         }
-        for d in 0..2 {
-            for k in 0..9 {
-                coef[((bi * 2 + d) * 9 + k) * hw + p] = cf[d * 9 + k];
-            }
+        for (dk, src) in cf.chunks_exact(w).enumerate() {
+            coef[(bi * 18 + dk) * hw + y * w..][..w].copy_from_slice(src);
         }
     }
     // ∂L/∂flow(q) = Σ_k coef_k(q − offset_k): gathered, so every cell is written once.
