@@ -1,5 +1,6 @@
 //! The MMS network (Notes S9–S10) in Burn.
 
+pub mod act;
 pub mod blocks;
 pub mod config;
 pub mod corr;
