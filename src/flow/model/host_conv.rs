@@ -136,24 +136,24 @@ pub fn weight_grad_host(
 
 /// Sizes of one convolution.
 #[derive(Clone, Copy, Debug)]
-struct Geometry {
-    batch: usize,
-    cin: usize,
-    h: usize,
-    w: usize,
-    cout: usize,
-    kh: usize,
-    kw: usize,
-    stride: [usize; 2],
+pub(super) struct Geometry {
+    pub(super) batch: usize,
+    pub(super) cin: usize,
+    pub(super) h: usize,
+    pub(super) w: usize,
+    pub(super) cout: usize,
+    pub(super) kh: usize,
+    pub(super) kw: usize,
+    pub(super) stride: [usize; 2],
     /// (top, left)
-    pad: [usize; 2],
-    dilation: [usize; 2],
-    ho: usize,
-    wo: usize,
+    pub(super) pad: [usize; 2],
+    pub(super) dilation: [usize; 2],
+    pub(super) ho: usize,
+    pub(super) wo: usize,
 }
 
 impl Geometry {
-    fn new(
+    pub(super) fn new(
         [batch, cin, h, w]: [usize; 4],
         [cout, _, kh, kw]: [usize; 4],
         o: &ConvOptions<2>,
@@ -197,15 +197,16 @@ impl Geometry {
     }
 
     /// The convolution of `x` `[B, Cin, H, W]` by `w` `[Cout, Cin, kh, kw]` (+ `bias`), as a
-    /// row-major `[B, Cout, H', W']`.
+    /// row-major `[B, Cout, H', W']`: by shifted products (`super::shifted_conv`) where they
+    /// are faster, else unfolded.
     fn run(&self, x: &[f32], w: &[f32], bias: Option<&[f32]>) -> Vec<f32> {
-        let (hw_out, k) = (self.ho * self.wo, self.k());
-        let mut out = vec![0f32; self.batch * self.cout * hw_out];
+        let hw_out = self.ho * self.wo;
         if hw_out == 0 || self.cout == 0 {
-            return out;
+            return vec![0f32; self.batch * self.cout * hw_out];
         }
-        if k == 0 {
+        if self.k() == 0 {
             // No input channels: the output is the bias.
+            let mut out = vec![0f32; self.batch * self.cout * hw_out];
             if let Some(b) = bias {
                 for (c, plane) in out.chunks_exact_mut(hw_out).enumerate() {
                     plane.fill(b[c % self.cout]);
@@ -213,6 +214,16 @@ impl Geometry {
             }
             return out;
         }
+        if self.shifted_forward() {
+            return self.run_shifted(x, w, bias);
+        }
+        self.run_unfold(x, w, bias)
+    }
+
+    /// [`Self::run`] by unfolding: one product per band of output rows, in parallel.
+    pub(super) fn run_unfold(&self, x: &[f32], w: &[f32], bias: Option<&[f32]>) -> Vec<f32> {
+        let hw_out = self.ho * self.wo;
+        let mut out = vec![0f32; self.batch * self.cout * hw_out];
         let (rows, bands_per_image) = self.bands();
         let dst = SendPtr(out.as_mut_ptr());
         (0..self.batch * bands_per_image)
@@ -235,13 +246,23 @@ impl Geometry {
         (rows, self.ho.div_ceil(rows))
     }
 
-    /// `[Cout, Cin·kh·kw]`: Σ over images and bands of `g(band) · cols(band)ᵀ`, one partial sum
-    /// per thread, added at the end.
+    /// `∂L/∂W` `[Cout, Cin·kh·kw]`, `Σ g · colsᵀ` over the batch: by shifted products where the
+    /// layer allows them (always faster there), else unfolded.
     fn weight_grad(&self, x: &[f32], g: &[f32]) -> Vec<f32> {
         let (k, cout) = (self.k(), self.cout);
         if self.ho * self.wo == 0 || k == 0 || cout == 0 {
             return vec![0f32; cout * k];
         }
+        if self.shifted() {
+            return self.weight_grad_shifted(x, g);
+        }
+        self.weight_grad_unfold(x, g)
+    }
+
+    /// [`Self::weight_grad`] by unfolding: one partial sum per thread over bands of output
+    /// rows, added at the end.
+    pub(super) fn weight_grad_unfold(&self, x: &[f32], g: &[f32]) -> Vec<f32> {
+        let (k, cout) = (self.k(), self.cout);
         let (rows, bands_per_image) = self.bands();
         (0..self.batch * bands_per_image)
             .into_par_iter()
@@ -440,10 +461,17 @@ thread_local! {
 
 /// The output pointer, shared by the band tasks.
 #[derive(Clone, Copy)]
-struct SendPtr(*mut f32);
+pub(super) struct SendPtr(pub(super) *mut f32);
 // SAFETY: the tasks write disjoint rows (see `Geometry::run`).
 unsafe impl Send for SendPtr {}
 unsafe impl Sync for SendPtr {}
+
+impl SendPtr {
+    /// The pointer; a method, so that closures capture the `Send` wrapper, not its field.
+    pub(super) fn ptr(self) -> *mut f32 {
+        self.0
+    }
+}
 
 #[cfg(test)]
 mod tests {

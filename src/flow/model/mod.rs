@@ -11,6 +11,7 @@ pub mod host_conv;
 pub mod host_norm;
 pub mod mms;
 pub mod padder;
+mod shifted_conv;
 pub mod train_conv;
 pub mod train_norm;
 pub mod update;
