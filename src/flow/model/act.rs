@@ -4,6 +4,13 @@
 
 use burn::prelude::*;
 use burn::tensor::activation::{relu, sigmoid, tanh};
+use rayon::prelude::*;
+
+use super::vexp::exp;
+
+/// Values per parallel task of the host loops: a layer's output is up to 2²¹ values (the
+/// encoders' first stage), the update block's a few 10⁴.
+const CHUNK: usize = 1 << 14;
 
 /// The activation that follows a convolution, applied inside the same operation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,24 +22,23 @@ pub enum Act {
 }
 
 impl Act {
-    /// In place on host values.
+    /// In place on host values, in parallel chunks.
     pub fn apply(self, y: &mut [f32]) {
         match self {
             Act::Identity => {}
-            Act::Relu => y.iter_mut().for_each(|v| *v = v.max(0.0)),
-            Act::Sigmoid => y.iter_mut().for_each(|v| *v = 1.0 / (1.0 + (-*v).exp())),
-            Act::Tanh => y.iter_mut().for_each(|v| *v = v.tanh()),
+            Act::Relu => map(y, |v| v.max(0.0)),
+            Act::Sigmoid => map(y, |v| 1.0 / (1.0 + exp(-v))),
+            Act::Tanh => map(y, f32::tanh),
         }
     }
 
     /// `g · act′`, with the derivative read from the activation's output `y`.
     pub fn backward(self, y: &[f32], g: &[f32]) -> Vec<f32> {
-        let each = |d: fn(f32, f32) -> f32| y.iter().zip(g).map(|(&y, &g)| d(y, g)).collect();
         match self {
             Act::Identity => g.to_vec(),
-            Act::Relu => each(|y, g| if y > 0.0 { g } else { 0.0 }),
-            Act::Sigmoid => each(|y, g| g * y * (1.0 - y)),
-            Act::Tanh => each(|y, g| g * (1.0 - y * y)),
+            Act::Relu => zip_map(y, g, |y, g| if y > 0.0 { g } else { 0.0 }),
+            Act::Sigmoid => zip_map(y, g, |y, g| g * y * (1.0 - y)),
+            Act::Tanh => zip_map(y, g, |y, g| g * (1.0 - y * y)),
         }
     }
 
@@ -45,4 +51,23 @@ impl Act {
             Act::Tanh => tanh(t),
         }
     }
+}
+
+/// `y ← f(y)`, in parallel chunks.
+fn map(y: &mut [f32], f: impl Fn(f32) -> f32 + Sync) {
+    y.par_chunks_mut(CHUNK)
+        .for_each(|c| c.iter_mut().for_each(|v| *v = f(*v)));
+}
+
+/// `f(y, g)` elementwise, in parallel chunks.
+fn zip_map(y: &[f32], g: &[f32], f: impl Fn(f32, f32) -> f32 + Sync) -> Vec<f32> {
+    let mut out = vec![0f32; g.len()];
+    out.par_chunks_mut(CHUNK)
+        .zip(y.par_chunks(CHUNK).zip(g.par_chunks(CHUNK)))
+        .for_each(|(o, (y, g))| {
+            for ((o, &y), &g) in o.iter_mut().zip(y).zip(g) {
+                *o = f(y, g);
+            }
+        });
+    out
 }

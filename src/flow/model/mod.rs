@@ -17,6 +17,7 @@ pub mod train_norm;
 pub mod update;
 pub mod upsample;
 pub mod upsample_host;
+mod vexp;
 
 pub use config::{MmsConfig, NormKind};
 pub use mms::Mms;

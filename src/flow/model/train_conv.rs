@@ -186,23 +186,37 @@ impl<const N: usize> Backward<Flex, N> for HostConv {
         });
         let g_pre = scaled.as_deref().unwrap_or(g.values());
         let [cout, _, kh, kw] = w.dims;
-        if let Some(node) = node_x {
-            let [_, _, h, w_in] = x.dims;
-            let (dx, shape) =
-                input_grad(g_pre, g.dims, w.values(), w.dims, [h, w_in], &state.options);
-            debug_assert_eq!(shape, x.dims);
+        // The input and kernel gradients are independent products: run side by side, each
+        // fills the other's idle threads (a weight gradient has 9 tap tasks for 2 threads).
+        let (dx, (dw, db)) = rayon::join(
+            || {
+                node_x.as_ref().map(|_| {
+                    let [_, _, h, w_in] = x.dims;
+                    input_grad(g_pre, g.dims, w.values(), w.dims, [h, w_in], &state.options).0
+                })
+            },
+            || {
+                let dw = node_w.as_ref().map(|_| {
+                    weight_grad_host(x.values(), x.dims, g_pre, [cout, kh, kw], &state.options)
+                });
+                let db = node_b.as_ref().map(|_| {
+                    let hw = g.dims[2] * g.dims[3];
+                    let mut db = vec![0f32; cout];
+                    for (i, plane) in g_pre.chunks_exact(hw.max(1)).enumerate() {
+                        db[i % cout] += plane.iter().sum::<f32>();
+                    }
+                    db
+                });
+                (dw, db)
+            },
+        );
+        if let (Some(node), Some(dx)) = (node_x, dx) {
             grads.register::<Flex>(node.id, from_host(dx, x.dims));
         }
-        if let Some(node) = node_w {
-            let dw = weight_grad_host(x.values(), x.dims, g_pre, [cout, kh, kw], &state.options);
+        if let (Some(node), Some(dw)) = (node_w, dw) {
             grads.register::<Flex>(node.id, from_host(dw, w.dims));
         }
-        if let Some(node) = node_b {
-            let hw = g.dims[2] * g.dims[3];
-            let mut db = vec![0f32; cout];
-            for (i, plane) in g_pre.chunks_exact(hw.max(1)).enumerate() {
-                db[i % cout] += plane.iter().sum::<f32>();
-            }
+        if let (Some(node), Some(db)) = (node_b, db) {
             grads.register::<Flex>(node.id, from_host(db, [cout]));
         }
     }

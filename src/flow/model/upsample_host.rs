@@ -17,6 +17,7 @@ use burn::prelude::*;
 use rayon::prelude::*;
 
 use super::flex_bridge::{Ad, AdT, HostView, from_host};
+use super::vexp::exp;
 
 /// The convex upsampling on the CPU backend (with or without autodiff); `None` elsewhere or for
 /// other dtypes (the caller then uses the tensor form).
@@ -46,53 +47,70 @@ pub fn convex_upsample_host(flow: &Tensor<4>, mask: &Tensor<4>) -> Option<Tensor
     ))
 }
 
-/// The softmax weights of sub-pixel `s` for the cells of one coarse row: `wk[k·w + x]` over the
-/// 9 neighbours k, from the logits at channels `k·64 + s` (contiguous along the row).
-fn row_weights(mask: &[f32], hw: usize, s: usize, row: usize, w: usize, wk: &mut [f32]) {
-    let mut max = vec![f32::NEG_INFINITY; w];
-    for k in 0..9 {
-        let l = &mask[(k * 64 + s) * hw + row..][..w];
-        for (m, &v) in max.iter_mut().zip(l) {
-            *m = m.max(v);
+/// Cells per task (whole coarse rows, at least two tasks per image).
+const CELLS_PER_TASK: usize = 512;
+
+/// The tasks: (image, first coarse row, end row), each owning full-resolution rows
+/// `8·y0 .. 8·y1` of its image.
+fn tasks(b: usize, h: usize, w: usize) -> Vec<(usize, usize, usize)> {
+    let rows = (CELLS_PER_TASK / w.max(1)).clamp(1, h.div_ceil(2).max(1));
+    (0..b)
+        .flat_map(|bi| {
+            (0..h)
+                .step_by(rows)
+                .map(move |y0| (bi, y0, (y0 + rows).min(h)))
+        })
+        .collect()
+}
+
+/// The softmax over the 9 neighbours of the cells `[p0, p0 + n)` of one image, for all 64
+/// sub-pixels: `wk[(k·64 + s)·n + c]`, from its logits `mask` `[576, H·W]`. Each step is a loop
+/// over `64·n` contiguous values.
+fn softmax_weights(mask: &[f32], hw: usize, p0: usize, n: usize, wk: &mut [f32]) {
+    for (ch, dst) in wk.chunks_exact_mut(n).enumerate() {
+        dst.copy_from_slice(&mask[ch * hw + p0..][..n]);
+    }
+    let m = 64 * n;
+    let mut max = wk[..m].to_vec();
+    for k in 1..9 {
+        for (mx, &v) in max.iter_mut().zip(&wk[k * m..(k + 1) * m]) {
+            *mx = mx.max(v);
         }
     }
-    let mut sum = vec![0f32; w];
-    for k in 0..9 {
-        let l = &mask[(k * 64 + s) * hw + row..][..w];
-        for (((e, &v), m), t) in wk[k * w..(k + 1) * w]
-            .iter_mut()
-            .zip(l)
-            .zip(&max)
-            .zip(&mut sum)
-        {
-            *e = (v - m).exp();
+    let mut sum = vec![0f32; m];
+    for plane in wk.chunks_exact_mut(m) {
+        for ((e, &mx), t) in plane.iter_mut().zip(&max).zip(&mut sum) {
+            *e = exp(*e - mx);
             *t += *e;
         }
     }
-    for k in 0..9 {
-        for (e, t) in wk[k * w..(k + 1) * w].iter_mut().zip(&sum) {
+    for plane in wk.chunks_exact_mut(m) {
+        for (e, &t) in plane.iter_mut().zip(&sum) {
             *e /= t;
         }
     }
 }
 
-/// 8× the flow at the 9 neighbours of every cell of coarse row y, zero outside the map:
-/// `nb[(d·9 + k)·w + x]`.
-fn row_neighbours(flow: &[f32], [h, w]: [usize; 2], y: usize) -> Vec<f32> {
-    let mut nb = vec![0f32; 18 * w];
+/// 8× the flow at the 9 neighbours of the cells of coarse rows `[y0, y1)`, zero outside the
+/// map: `nb[(d·9 + k)·n + c]` for neighbour k = 3·ky + kx at offset (ky − 1, kx − 1).
+fn neighbours(flow: &[f32], [h, w]: [usize; 2], y0: usize, y1: usize) -> Vec<f32> {
+    let n = (y1 - y0) * w;
+    let mut nb = vec![0f32; 18 * n];
     for d in 0..2 {
         for k in 0..9 {
-            let yy = y as isize + (k / 3) as isize - 1;
-            if yy < 0 || yy >= h as isize {
-                continue;
-            }
-            let src = &flow[d * h * w + yy as usize * w..][..w];
-            let dst = &mut nb[(d * 9 + k) * w..(d * 9 + k + 1) * w];
-            // Neighbour column x + kx − 1.
-            for (x, v) in dst.iter_mut().enumerate() {
-                let xx = x as isize + (k % 3) as isize - 1;
-                if xx >= 0 && xx < w as isize {
-                    *v = 8.0 * src[xx as usize];
+            let (dy, dx) = ((k / 3) as isize - 1, (k % 3) as isize - 1);
+            for y in y0..y1 {
+                let yy = y as isize + dy;
+                if yy < 0 || yy >= h as isize {
+                    continue;
+                }
+                let src = &flow[d * h * w + yy as usize * w..][..w];
+                let dst = &mut nb[(d * 9 + k) * n + (y - y0) * w..][..w];
+                // Columns x whose neighbour x + dx lies inside [0, W).
+                let lo = (-dx).max(0) as usize;
+                let hi = (w as isize - dx.max(0)).max(0) as usize;
+                for x in lo..hi.max(lo) {
+                    dst[x] = 8.0 * src[(x as isize + dx) as usize];
                 }
             }
         }
@@ -105,39 +123,50 @@ fn row_neighbours(flow: &[f32], [h, w]: [usize; 2], y: usize) -> Vec<f32> {
 fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
     let (hw, wf) = (h * w, 8 * w);
     let mut out = vec![0f32; b * 2 * 64 * hw];
-    // One task per image and coarse row: it owns full-resolution rows 8y..8y+8 of both channels.
-    let rows: Vec<(usize, usize)> = (0..b).flat_map(|bi| (0..h).map(move |y| (bi, y))).collect();
-    let chunks: Vec<Vec<f32>> = rows
+    let tasks = tasks(b, h, w);
+    let slabs: Vec<Vec<f32>> = tasks
         .par_iter()
-        .map(|&(bi, y)| {
-            let (f, m) = (
-                &flow[bi * 2 * hw..(bi + 1) * 2 * hw],
-                &mask[bi * 576 * hw..(bi + 1) * 576 * hw],
-            );
-            let nb = row_neighbours(f, [h, w], y);
-            let mut wk = vec![0f32; 9 * w];
-            let mut rowbuf = vec![0f32; 2 * 8 * wf];
-            for s in 0..64 {
-                row_weights(m, hw, s, y * w, w, &mut wk);
-                let (i, j) = (s / 8, s % 8);
-                for d in 0..2 {
-                    let dst = &mut rowbuf[(d * 8 + i) * wf..(d * 8 + i + 1) * wf];
-                    for x in 0..w {
-                        dst[8 * x + j] = (0..9)
-                            .map(|k| wk[k * w + x] * nb[(d * 9 + k) * w + x])
-                            .sum();
+        .map(|&(bi, y0, y1)| {
+            let n = (y1 - y0) * w;
+            let nb = neighbours(&flow[bi * 2 * hw..(bi + 1) * 2 * hw], [h, w], y0, y1);
+            let mut wk = vec![0f32; 576 * n];
+            softmax_weights(&mask[bi * 576 * hw..], hw, y0 * w, n, &mut wk);
+            // Full-resolution rows 8·y0 .. 8·y1 of both channels.
+            let mut slab = vec![0f32; 2 * 64 * n];
+            let mut acc = vec![0f32; 64 * n];
+            for d in 0..2 {
+                acc.fill(0.0);
+                for k in 0..9 {
+                    let nbk = &nb[(d * 9 + k) * n..][..n];
+                    for (a, wks) in acc
+                        .chunks_exact_mut(n)
+                        .zip(wk[k * 64 * n..].chunks_exact(n))
+                    {
+                        for ((a, &wv), &v) in a.iter_mut().zip(wks).zip(nbk) {
+                            *a += wv * v;
+                        }
+                    }
+                }
+                // acc[s][c] → row 8·y + i, column 8·x + j, for s = 8·i + j and c = (y − y0)·W + x.
+                let dst = &mut slab[d * 64 * n..(d + 1) * 64 * n];
+                for (s, a) in acc.chunks_exact(n).enumerate() {
+                    let (i, j) = (s / 8, s % 8);
+                    for (yl, row) in a.chunks_exact(w).enumerate() {
+                        let line = &mut dst[(8 * yl + i) * wf..][..wf];
+                        for (x, &v) in row.iter().enumerate() {
+                            line[8 * x + j] = v;
+                        }
                     }
                 }
             }
-            rowbuf
+            slab
         })
         .collect();
-    for ((bi, y), rowbuf) in rows.into_iter().zip(chunks) {
+    for (&(bi, y0, y1), slab) in tasks.iter().zip(slabs) {
+        let len = (y1 - y0) * 64 * w;
         for d in 0..2 {
-            for i in 0..8 {
-                let dst = ((bi * 2 + d) * 8 * h + 8 * y + i) * wf;
-                out[dst..dst + wf].copy_from_slice(&rowbuf[(d * 8 + i) * wf..(d * 8 + i + 1) * wf]);
-            }
+            let at = ((bi * 2 + d) * 8 * h + 8 * y0) * wf;
+            out[at..at + len].copy_from_slice(&slab[d * len..(d + 1) * len]);
         }
     }
     out
@@ -150,60 +179,71 @@ fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
 /// → (`[B, 2, H, W]`, `[B, 576, H, W]`)
 fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Vec<f32>, Vec<f32>) {
     let (hw, wf) = (h * w, 8 * w);
-    let mut dmask = vec![0f32; b * 576 * hw];
-    // coef[b, d, k, p] = 8 Σ_s w_k(p, s) g_d(p, s): what neighbour k of cell p receives.
-    let mut coef = vec![0f32; b * 2 * 9 * hw];
-    // One task per image and coarse row: ∂L/∂mask `[576, w]` and coef `[18, w]` of its cells.
-    let rows: Vec<(usize, usize)> = (0..b).flat_map(|bi| (0..h).map(move |y| (bi, y))).collect();
-    let per_row: Vec<(Vec<f32>, Vec<f32>)> = rows
+    let tasks = tasks(b, h, w);
+    // Per task: ∂L/∂mask [576, n] and coef [18, n], coef[d, k, c] = 8 Σ_s w_k(c, s) g_d(c, s),
+    // what neighbour k of cell c receives.
+    let per_task: Vec<(Vec<f32>, Vec<f32>)> = tasks
         .par_iter()
-        .map(|&(bi, y)| {
-            let (f, m) = (
-                &flow[bi * 2 * hw..(bi + 1) * 2 * hw],
-                &mask[bi * 576 * hw..(bi + 1) * 576 * hw],
-            );
-            let nb = row_neighbours(f, [h, w], y);
-            let mut wk = vec![0f32; 9 * w];
-            let mut dm = vec![0f32; 576 * w];
-            let mut cf = vec![0f32; 18 * w];
-            let (mut gd, mut t, mut wt) = (vec![0f32; 2 * w], vec![0f32; 9 * w], vec![0f32; w]);
-            for s in 0..64 {
-                row_weights(m, hw, s, y * w, w, &mut wk);
-                let (i, j) = (s / 8, s % 8);
-                for d in 0..2 {
-                    let src = &g[((bi * 2 + d) * 8 * h + 8 * y + i) * wf..][..wf];
-                    for (x, v) in gd[d * w..(d + 1) * w].iter_mut().enumerate() {
-                        *v = src[8 * x + j];
+        .map(|&(bi, y0, y1)| {
+            let n = (y1 - y0) * w;
+            let nb = neighbours(&flow[bi * 2 * hw..(bi + 1) * 2 * hw], [h, w], y0, y1);
+            let mut wk = vec![0f32; 576 * n];
+            softmax_weights(&mask[bi * 576 * hw..], hw, y0 * w, n, &mut wk);
+            // gs[d][s][c]: the output gradient at sub-pixel s of cell c.
+            let mut gs = vec![0f32; 2 * 64 * n];
+            for d in 0..2 {
+                for yl in 0..y1 - y0 {
+                    for i in 0..8 {
+                        let src = &g[((bi * 2 + d) * 8 * h + 8 * (y0 + yl) + i) * wf..][..wf];
+                        for j in 0..8 {
+                            let dst = &mut gs[(d * 64 + 8 * i + j) * n + yl * w..][..w];
+                            for (x, v) in dst.iter_mut().enumerate() {
+                                *v = src[8 * x + j];
+                            }
+                        }
                     }
                 }
+            }
+            let mut dm = vec![0f32; 576 * n];
+            let mut cf = vec![0f32; 18 * n];
+            let (mut t, mut wt) = (vec![0f32; 9 * n], vec![0f32; n]);
+            for s in 0..64 {
+                let (g0, g1) = (&gs[s * n..][..n], &gs[(64 + s) * n..][..n]);
                 // t_k = ∂L/∂w_k; softmax: ∂L/∂l_k = w_k (t_k − Σ w t).
                 wt.fill(0.0);
                 for k in 0..9 {
-                    for x in 0..w {
-                        let tk = gd[x] * nb[k * w + x] + gd[w + x] * nb[(9 + k) * w + x];
-                        t[k * w + x] = tk;
-                        wt[x] += wk[k * w + x] * tk;
+                    let wks = &wk[(k * 64 + s) * n..][..n];
+                    let (n0, n1) = (&nb[k * n..][..n], &nb[(9 + k) * n..][..n]);
+                    let tk = &mut t[k * n..][..n];
+                    for c in 0..n {
+                        tk[c] = g0[c] * n0[c] + g1[c] * n1[c];
+                        wt[c] += wks[c] * tk[c];
                     }
                 }
                 for k in 0..9 {
-                    let dst = &mut dm[(k * 64 + s) * w..(k * 64 + s + 1) * w];
-                    for x in 0..w {
-                        let wx = wk[k * w + x];
-                        dst[x] = wx * (t[k * w + x] - wt[x]);
-                        cf[k * w + x] += 8.0 * wx * gd[x];
-                        cf[(9 + k) * w + x] += 8.0 * wx * gd[w + x];
+                    let wks = &wk[(k * 64 + s) * n..][..n];
+                    let dst = &mut dm[(k * 64 + s) * n..][..n];
+                    let (c0, c1) = cf.split_at_mut(9 * n);
+                    let (c0, c1) = (&mut c0[k * n..][..n], &mut c1[k * n..][..n]);
+                    for c in 0..n {
+                        dst[c] = wks[c] * (t[k * n + c] - wt[c]);
+                        c0[c] += 8.0 * wks[c] * g0[c];
+                        c1[c] += 8.0 * wks[c] * g1[c];
                     }
                 }
             }
             (dm, cf)
         })
         .collect();
-    for ((bi, y), (dm, cf)) in rows.into_iter().zip(per_row) {
-        for (ch, src) in dm.chunks_exact(w).enumerate() {
-            dmask[(bi * 576 + ch) * hw + y * w..][..w].copy_from_slice(src);
+    let mut dmask = vec![0f32; b * 576 * hw];
+    let mut coef = vec![0f32; b * 18 * hw];
+    for (&(bi, y0, y1), (dm, cf)) in tasks.iter().zip(per_task) {
+        let n = (y1 - y0) * w;
+        for (ch, src) in dm.chunks_exact(n).enumerate() {
+            dmask[(bi * 576 + ch) * hw + y0 * w..][..n].copy_from_slice(src);
         }
-        for (dk, src) in cf.chunks_exact(w).enumerate() {
-            coef[(bi * 18 + dk) * hw + y * w..][..w].copy_from_slice(src);
+        for (dk, src) in cf.chunks_exact(n).enumerate() {
+            coef[(bi * 18 + dk) * hw + y0 * w..][..n].copy_from_slice(src);
         }
     }
     // ∂L/∂flow(q) = Σ_k coef_k(q − offset_k): gathered, so every cell is written once.
