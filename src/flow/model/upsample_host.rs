@@ -14,6 +14,7 @@ use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::prelude::*;
+use multiversion::multiversion;
 use rayon::prelude::*;
 
 use super::flex_bridge::{Ad, AdT, HostView, from_host};
@@ -66,6 +67,7 @@ fn tasks(b: usize, h: usize, w: usize) -> Vec<(usize, usize, usize)> {
 /// The softmax over the 9 neighbours of the cells `[p0, p0 + n)` of one image, for all 64
 /// sub-pixels: `wk[(k·64 + s)·n + c]`, from its logits `mask` `[576, H·W]`. Each step is a loop
 /// over `64·n` contiguous values.
+#[inline(always)] // into the SIMD versions of the tasks
 fn softmax_weights(mask: &[f32], hw: usize, p0: usize, n: usize, wk: &mut [f32]) {
     for (ch, dst) in wk.chunks_exact_mut(n).enumerate() {
         dst.copy_from_slice(&mask[ch * hw + p0..][..n]);
@@ -126,41 +128,7 @@ fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
     let tasks = tasks(b, h, w);
     let slabs: Vec<Vec<f32>> = tasks
         .par_iter()
-        .map(|&(bi, y0, y1)| {
-            let n = (y1 - y0) * w;
-            let nb = neighbours(&flow[bi * 2 * hw..(bi + 1) * 2 * hw], [h, w], y0, y1);
-            let mut wk = vec![0f32; 576 * n];
-            softmax_weights(&mask[bi * 576 * hw..], hw, y0 * w, n, &mut wk);
-            // Full-resolution rows 8·y0 .. 8·y1 of both channels.
-            let mut slab = vec![0f32; 2 * 64 * n];
-            let mut acc = vec![0f32; 64 * n];
-            for d in 0..2 {
-                acc.fill(0.0);
-                for k in 0..9 {
-                    let nbk = &nb[(d * 9 + k) * n..][..n];
-                    for (a, wks) in acc
-                        .chunks_exact_mut(n)
-                        .zip(wk[k * 64 * n..].chunks_exact(n))
-                    {
-                        for ((a, &wv), &v) in a.iter_mut().zip(wks).zip(nbk) {
-                            *a += wv * v;
-                        }
-                    }
-                }
-                // acc[s][c] → row 8·y + i, column 8·x + j, for s = 8·i + j and c = (y − y0)·W + x.
-                let dst = &mut slab[d * 64 * n..(d + 1) * 64 * n];
-                for (s, a) in acc.chunks_exact(n).enumerate() {
-                    let (i, j) = (s / 8, s % 8);
-                    for (yl, row) in a.chunks_exact(w).enumerate() {
-                        let line = &mut dst[(8 * yl + i) * wf..][..wf];
-                        for (x, &v) in row.iter().enumerate() {
-                            line[8 * x + j] = v;
-                        }
-                    }
-                }
-            }
-            slab
-        })
+        .map(|&(bi, y0, y1)| forward_task(flow, mask, [h, w], bi, y0, y1))
         .collect();
     for (&(bi, y0, y1), slab) in tasks.iter().zip(slabs) {
         let len = (y1 - y0) * 64 * w;
@@ -178,62 +146,13 @@ fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
 /// # Shapes
 /// → (`[B, 2, H, W]`, `[B, 576, H, W]`)
 fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Vec<f32>, Vec<f32>) {
-    let (hw, wf) = (h * w, 8 * w);
+    let hw = h * w;
     let tasks = tasks(b, h, w);
     // Per task: ∂L/∂mask [576, n] and coef [18, n], coef[d, k, c] = 8 Σ_s w_k(c, s) g_d(c, s),
     // what neighbour k of cell c receives.
     let per_task: Vec<(Vec<f32>, Vec<f32>)> = tasks
         .par_iter()
-        .map(|&(bi, y0, y1)| {
-            let n = (y1 - y0) * w;
-            let nb = neighbours(&flow[bi * 2 * hw..(bi + 1) * 2 * hw], [h, w], y0, y1);
-            let mut wk = vec![0f32; 576 * n];
-            softmax_weights(&mask[bi * 576 * hw..], hw, y0 * w, n, &mut wk);
-            // gs[d][s][c]: the output gradient at sub-pixel s of cell c.
-            let mut gs = vec![0f32; 2 * 64 * n];
-            for d in 0..2 {
-                for yl in 0..y1 - y0 {
-                    for i in 0..8 {
-                        let src = &g[((bi * 2 + d) * 8 * h + 8 * (y0 + yl) + i) * wf..][..wf];
-                        for j in 0..8 {
-                            let dst = &mut gs[(d * 64 + 8 * i + j) * n + yl * w..][..w];
-                            for (x, v) in dst.iter_mut().enumerate() {
-                                *v = src[8 * x + j];
-                            }
-                        }
-                    }
-                }
-            }
-            let mut dm = vec![0f32; 576 * n];
-            let mut cf = vec![0f32; 18 * n];
-            let (mut t, mut wt) = (vec![0f32; 9 * n], vec![0f32; n]);
-            for s in 0..64 {
-                let (g0, g1) = (&gs[s * n..][..n], &gs[(64 + s) * n..][..n]);
-                // t_k = ∂L/∂w_k; softmax: ∂L/∂l_k = w_k (t_k − Σ w t).
-                wt.fill(0.0);
-                for k in 0..9 {
-                    let wks = &wk[(k * 64 + s) * n..][..n];
-                    let (n0, n1) = (&nb[k * n..][..n], &nb[(9 + k) * n..][..n]);
-                    let tk = &mut t[k * n..][..n];
-                    for c in 0..n {
-                        tk[c] = g0[c] * n0[c] + g1[c] * n1[c];
-                        wt[c] += wks[c] * tk[c];
-                    }
-                }
-                for k in 0..9 {
-                    let wks = &wk[(k * 64 + s) * n..][..n];
-                    let dst = &mut dm[(k * 64 + s) * n..][..n];
-                    let (c0, c1) = cf.split_at_mut(9 * n);
-                    let (c0, c1) = (&mut c0[k * n..][..n], &mut c1[k * n..][..n]);
-                    for c in 0..n {
-                        dst[c] = wks[c] * (t[k * n + c] - wt[c]);
-                        c0[c] += 8.0 * wks[c] * g0[c];
-                        c1[c] += 8.0 * wks[c] * g1[c];
-                    }
-                }
-            }
-            (dm, cf)
-        })
+        .map(|&(bi, y0, y1)| backward_task(flow, mask, g, [h, w], bi, y0, y1))
         .collect();
     let mut dmask = vec![0f32; b * 576 * hw];
     let mut coef = vec![0f32; b * 18 * hw];
@@ -266,6 +185,114 @@ fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Ve
             }
         });
     (dflow, dmask)
+}
+
+/// Full-resolution rows `8·y0 .. 8·y1` of image `bi`, both channels: `[2, 8·(y1 − y0), 8W]`.
+#[multiversion(targets = "simd")]
+fn forward_task(
+    flow: &[f32],
+    mask: &[f32],
+    [h, w]: [usize; 2],
+    bi: usize,
+    y0: usize,
+    y1: usize,
+) -> Vec<f32> {
+    let (hw, wf) = (h * w, 8 * w);
+    let n = (y1 - y0) * w;
+    let nb = neighbours(&flow[bi * 2 * hw..(bi + 1) * 2 * hw], [h, w], y0, y1);
+    let mut wk = vec![0f32; 576 * n];
+    softmax_weights(&mask[bi * 576 * hw..], hw, y0 * w, n, &mut wk);
+    // Full-resolution rows 8·y0 .. 8·y1 of both channels.
+    let mut slab = vec![0f32; 2 * 64 * n];
+    let mut acc = vec![0f32; 64 * n];
+    for d in 0..2 {
+        acc.fill(0.0);
+        for k in 0..9 {
+            let nbk = &nb[(d * 9 + k) * n..][..n];
+            for (a, wks) in acc
+                .chunks_exact_mut(n)
+                .zip(wk[k * 64 * n..].chunks_exact(n))
+            {
+                for ((a, &wv), &v) in a.iter_mut().zip(wks).zip(nbk) {
+                    *a += wv * v;
+                }
+            }
+        }
+        // acc[s][c] → row 8·y + i, column 8·x + j, for s = 8·i + j and c = (y − y0)·W + x.
+        let dst = &mut slab[d * 64 * n..(d + 1) * 64 * n];
+        for (s, a) in acc.chunks_exact(n).enumerate() {
+            let (i, j) = (s / 8, s % 8);
+            for (yl, row) in a.chunks_exact(w).enumerate() {
+                let line = &mut dst[(8 * yl + i) * wf..][..wf];
+                for (x, &v) in row.iter().enumerate() {
+                    line[8 * x + j] = v;
+                }
+            }
+        }
+    }
+    slab
+}
+
+/// ∂L/∂mask `[576, n]` and coef `[18, n]` of the cells of coarse rows `[y0, y1)` of image `bi`.
+#[multiversion(targets = "simd")]
+fn backward_task(
+    flow: &[f32],
+    mask: &[f32],
+    g: &[f32],
+    [h, w]: [usize; 2],
+    bi: usize,
+    y0: usize,
+    y1: usize,
+) -> (Vec<f32>, Vec<f32>) {
+    let (hw, wf) = (h * w, 8 * w);
+    let n = (y1 - y0) * w;
+    let nb = neighbours(&flow[bi * 2 * hw..(bi + 1) * 2 * hw], [h, w], y0, y1);
+    let mut wk = vec![0f32; 576 * n];
+    softmax_weights(&mask[bi * 576 * hw..], hw, y0 * w, n, &mut wk);
+    // gs[d][s][c]: the output gradient at sub-pixel s of cell c.
+    let mut gs = vec![0f32; 2 * 64 * n];
+    for d in 0..2 {
+        for yl in 0..y1 - y0 {
+            for i in 0..8 {
+                let src = &g[((bi * 2 + d) * 8 * h + 8 * (y0 + yl) + i) * wf..][..wf];
+                for j in 0..8 {
+                    let dst = &mut gs[(d * 64 + 8 * i + j) * n + yl * w..][..w];
+                    for (x, v) in dst.iter_mut().enumerate() {
+                        *v = src[8 * x + j];
+                    }
+                }
+            }
+        }
+    }
+    let mut dm = vec![0f32; 576 * n];
+    let mut cf = vec![0f32; 18 * n];
+    let (mut t, mut wt) = (vec![0f32; 9 * n], vec![0f32; n]);
+    for s in 0..64 {
+        let (g0, g1) = (&gs[s * n..][..n], &gs[(64 + s) * n..][..n]);
+        // t_k = ∂L/∂w_k; softmax: ∂L/∂l_k = w_k (t_k − Σ w t).
+        wt.fill(0.0);
+        for k in 0..9 {
+            let wks = &wk[(k * 64 + s) * n..][..n];
+            let (n0, n1) = (&nb[k * n..][..n], &nb[(9 + k) * n..][..n]);
+            let tk = &mut t[k * n..][..n];
+            for c in 0..n {
+                tk[c] = g0[c] * n0[c] + g1[c] * n1[c];
+                wt[c] += wks[c] * tk[c];
+            }
+        }
+        for k in 0..9 {
+            let wks = &wk[(k * 64 + s) * n..][..n];
+            let dst = &mut dm[(k * 64 + s) * n..][..n];
+            let (c0, c1) = cf.split_at_mut(9 * n);
+            let (c0, c1) = (&mut c0[k * n..][..n], &mut c1[k * n..][..n]);
+            for c in 0..n {
+                dst[c] = wks[c] * (t[k * n + c] - wt[c]);
+                c0[c] += 8.0 * wks[c] * g0[c];
+                c1[c] += 8.0 * wks[c] * g1[c];
+            }
+        }
+    }
+    (dm, cf)
 }
 
 fn upsample_op(flow: AdT, mask: AdT) -> AdT {
