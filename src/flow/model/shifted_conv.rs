@@ -34,6 +34,7 @@ impl Geometry {
         self.stride == [1, 1]
             && self.kh * self.kw > 1
             && self.cin >= MIN_CHANNELS
+            && self.h * self.w > 0
             && self.ho > 0
             && self.wo > 0
             && (self.wp() as f64) <= MAX_WIDTH_RATIO * self.wo as f64
