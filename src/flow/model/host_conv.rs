@@ -224,19 +224,23 @@ impl Geometry {
     pub(super) fn run_unfold(&self, x: &[f32], w: &[f32], bias: Option<&[f32]>) -> Vec<f32> {
         let hw_out = self.ho * self.wo;
         let mut out = vec![0f32; self.batch * self.cout * hw_out];
-        let (rows, bands_per_image) = self.bands();
         let dst = SendPtr(out.as_mut_ptr());
-        (0..self.batch * bands_per_image)
-            .into_par_iter()
-            .for_each(|task| {
-                let (b, band) = (task / bands_per_image, task % bands_per_image);
-                let oy0 = band * rows;
-                let oy1 = (oy0 + rows).min(self.ho);
-                // SAFETY: every task writes the pixels of its own rows [oy0, oy1) of its own
-                // image, so no two tasks touch the same element, and `out` outlives the loop.
-                unsafe { self.band(x, w, bias, b, oy0, oy1, dst) };
-            });
+        self.for_each_band(self.bands().0, |b, oy0, oy1| {
+            // SAFETY: every task writes the pixels of its own rows [oy0, oy1) of its own image,
+            // so no two tasks touch the same element, and `out` outlives the loop.
+            unsafe { self.band(x, w, bias, b, oy0, oy1, dst) };
+        });
         out
+    }
+
+    /// Runs `f(b, oy0, oy1)` for every band of `rows` output rows `[oy0, oy1)` of every image
+    /// `b`, in parallel.
+    pub(super) fn for_each_band(&self, rows: usize, f: impl Fn(usize, usize, usize) + Sync) {
+        let bands = self.ho.div_ceil(rows);
+        (0..self.batch * bands).into_par_iter().for_each(|task| {
+            let (b, oy0) = (task / bands, (task % bands) * rows);
+            f(b, oy0, (oy0 + rows).min(self.ho));
+        });
     }
 
     /// Rows per band and bands per image.

@@ -105,77 +105,70 @@ impl Geometry {
             }
         }
         let mut out = vec![0f32; self.batch * cout * hw_out];
-        let (rows, bands_per_image) = self.bands_shifted();
         let dst = SendPtr(out.as_mut_ptr());
-        (0..self.batch * bands_per_image)
-            .into_par_iter()
-            .for_each(|task| {
-                let (b, band) = (task / bands_per_image, task % bands_per_image);
-                let oy0 = band * rows;
-                let oy1 = (oy0 + rows).min(self.ho);
-                let n = (oy1 - oy0) * wp;
-                let image = &xp[b * cin * plane..];
-                BAND.with(|cell| {
-                    let mut acc = cell.borrow_mut();
-                    acc.resize(cout * n, 0.0);
-                    if let Some(bias) = bias {
-                        for (row, &v) in acc.chunks_exact_mut(n).zip(bias) {
-                            row.fill(v);
-                        }
+        self.for_each_band(self.band_rows_shifted(), |b, oy0, oy1| {
+            let n = (oy1 - oy0) * wp;
+            let image = &xp[b * cin * plane..];
+            BAND.with(|cell| {
+                let mut acc = cell.borrow_mut();
+                acc.resize(cout * n, 0.0);
+                if let Some(bias) = bias {
+                    for (row, &v) in acc.chunks_exact_mut(n).zip(bias) {
+                        row.fill(v);
                     }
-                    for t in 0..taps {
-                        let rhs = &image[oy0 * wp + self.tap_offset(t)..];
-                        // SAFETY: acc is [Cout, n]; the kernel's tap t is [Cout, Cin] at strides
-                        // (Cin·taps, taps); rhs is [Cin, n] at strides (H_p·W_p, 1), whose last
-                        // element lies inside the padded batch by the slack of `pad_input`.
-                        unsafe {
-                            gemm::gemm(
-                                cout,
-                                n,
-                                cin,
-                                acc.as_mut_ptr(),
-                                1,
-                                n as isize,
-                                t > 0 || bias.is_some(),
-                                wt[t * cout * cin..].as_ptr(),
-                                1,
-                                cin as isize,
-                                rhs.as_ptr(),
-                                1,
-                                plane as isize,
-                                1.0f32,
-                                1.0f32,
-                                false,
-                                false,
-                                false,
-                                gemm::Parallelism::None,
+                }
+                for t in 0..taps {
+                    let rhs = &image[oy0 * wp + self.tap_offset(t)..];
+                    // SAFETY: acc is [Cout, n]; the kernel's tap t is [Cout, Cin] at strides
+                    // (Cin·taps, taps); rhs is [Cin, n] at strides (H_p·W_p, 1), whose last
+                    // element lies inside the padded batch by the slack of `pad_input`.
+                    unsafe {
+                        gemm::gemm(
+                            cout,
+                            n,
+                            cin,
+                            acc.as_mut_ptr(),
+                            1,
+                            n as isize,
+                            t > 0 || bias.is_some(),
+                            wt[t * cout * cin..].as_ptr(),
+                            1,
+                            cin as isize,
+                            rhs.as_ptr(),
+                            1,
+                            plane as isize,
+                            1.0f32,
+                            1.0f32,
+                            false,
+                            false,
+                            false,
+                            gemm::Parallelism::None,
+                        )
+                    };
+                }
+                // The valid W' columns of each row.
+                for (c, src) in acc.chunks_exact(n).enumerate() {
+                    let base = (b * cout + c) * hw_out + oy0 * self.wo;
+                    for (y, row) in src.chunks_exact(wp).enumerate() {
+                        // SAFETY: rows [oy0, oy1) of image b belong to this task alone.
+                        let d = unsafe {
+                            std::slice::from_raw_parts_mut(
+                                dst.ptr().add(base + y * self.wo),
+                                self.wo,
                             )
                         };
+                        d.copy_from_slice(&row[..self.wo]);
                     }
-                    // The valid W' columns of each row.
-                    for (c, src) in acc.chunks_exact(n).enumerate() {
-                        let base = (b * cout + c) * hw_out + oy0 * self.wo;
-                        for (y, row) in src.chunks_exact(wp).enumerate() {
-                            // SAFETY: rows [oy0, oy1) of image b belong to this task alone.
-                            let d = unsafe {
-                                std::slice::from_raw_parts_mut(
-                                    dst.ptr().add(base + y * self.wo),
-                                    self.wo,
-                                )
-                            };
-                            d.copy_from_slice(&row[..self.wo]);
-                        }
-                    }
-                });
+                }
             });
+        });
         out
     }
 
-    /// Rows per band and bands per image: two bands per image or more, each small enough that
-    /// its `[Cout, rows·W_p]` sum stays in cache.
-    fn bands_shifted(&self) -> (usize, usize) {
-        let rows = (BAND_ACC_FLOATS / (self.cout * self.wp())).clamp(1, self.ho.div_ceil(2).max(1));
-        (rows, self.ho.div_ceil(rows))
+    /// Rows per band: two bands per image or more, each small enough that its `[Cout, rows·W_p]`
+    /// sum stays in cache.
+    fn band_rows_shifted(&self) -> usize {
+        (BAND_ACC_FLOATS / (self.cout * self.wp())).clamp(1, self.ho.div_ceil(2).max(1))
     }
 
     /// `∂L/∂W` `[Cout, Cin, kh, kw]` from the input `x` `[B, Cin, H, W]` and the output gradient
