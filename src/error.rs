@@ -8,12 +8,12 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// Everything a user can get wrong, and every I/O failure, as a typed error with context.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// An operating-system I/O failure on a named path.
-    #[error("{path}: {source}")]
+    /// An operating-system I/O failure on a named path. The OS message is part of the text and
+    /// not also a `source()`, so a printed chain (`{:#}`) says it once.
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A file exists but its contents are not what its format requires.
     #[error("{path}: {reason}")]
@@ -38,7 +38,7 @@ impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            error: source,
         }
     }
 
@@ -69,5 +69,17 @@ impl Error {
             expected: expected.to_string(),
             found: found.to_string(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_os_error_is_printed_once() {
+        let e = Error::io("x.png", std::io::Error::from(std::io::ErrorKind::NotFound));
+        let chain = format!("{:#}", anyhow::Error::from(e));
+        assert_eq!(chain.matches("not found").count(), 1, "{chain}");
     }
 }

@@ -7,7 +7,7 @@ mod cli;
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 use cli::array::{ArrayCommand, array};
 use cli::data::{BenchArgs, GenerateArgs, PsfArgs, SimulateArgs, bench, generate, psf, simulate};
@@ -71,7 +71,7 @@ fn main() {
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_none() {
         unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
     }
-    let cli = Cli::parse();
+    let cli = parse_cli();
     // The command runs on a worker thread of rayon's pool. Each parallel kernel it calls (a
     // convolution, a lookup) then splits its work among the workers directly; called from outside
     // the pool, every call would be handed over to the pool and the calling thread parked until it
@@ -82,6 +82,24 @@ fn main() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Parses the command line. Every option that takes a value accepts a negative number
+/// (`--gamma -1`), so that the value reaches validation and gets its own message instead of
+/// clap's "unexpected argument".
+fn parse_cli() -> Cli {
+    fn negatives(cmd: clap::Command) -> clap::Command {
+        cmd.mut_args(|a| {
+            if a.get_action().takes_values() {
+                a.allow_negative_numbers(true)
+            } else {
+                a
+            }
+        })
+        .mut_subcommands(negatives)
+    }
+    let matches = negatives(Cli::command()).get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
 }
 
 fn run(command: Command) -> anyhow::Result<()> {

@@ -74,6 +74,7 @@ pub fn predict_flow(
             format!("must be 1..=256, got {iters}"),
         ));
     }
+    img1.check_nonempty("first image")?;
     img1.check_finite("first image")?;
     img2.check_finite("second image")?;
     let (h, w) = (img1.height(), img1.width());

@@ -35,9 +35,65 @@ pub fn to_bytes(model: &Mms, config: &MmsConfig) -> Result<Vec<u8>> {
     model
         .save_into(&mut store)
         .map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))?;
-    store
+    let bytes = store
         .get_bytes()
-        .map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))
+        .map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))?;
+    canonical_safetensors(&bytes)
+}
+
+/// The same safetensors content in one canonical byte layout: header keys sorted (tensors and
+/// metadata), tensor data in the order of the sorted names, the header padded with spaces to a
+/// multiple of 8 bytes. Burn writes its metadata from a hash map, so the same weights could
+/// otherwise give different files; with this, equal weights and config give equal bytes.
+pub fn canonical_safetensors(bytes: &[u8]) -> Result<Vec<u8>> {
+    use serde_json::{Map, Value};
+    use std::collections::BTreeMap;
+    let bad = |r: &str| Error::invalid("weights", format!("cannot canonicalise safetensors: {r}"));
+    let n = bytes
+        .get(..8)
+        .and_then(|b| b.try_into().ok())
+        .map(u64::from_le_bytes)
+        .ok_or_else(|| bad("no header"))? as usize;
+    let header = bytes.get(8..8usize.saturating_add(n)).ok_or_else(|| bad("header"))?;
+    let data = &bytes[8 + n..];
+    let header: BTreeMap<String, Value> =
+        serde_json::from_slice(header).map_err(|e| bad(&e.to_string()))?;
+    let mut out_header = Map::new();
+    let mut out_data = Vec::with_capacity(data.len());
+    for (name, entry) in header {
+        if name == "__metadata__" {
+            let sorted: BTreeMap<String, Value> =
+                serde_json::from_value(entry).map_err(|e| bad(&e.to_string()))?;
+            out_header.insert(name, Value::Object(sorted.into_iter().collect()));
+            continue;
+        }
+        let offsets = entry
+            .get("data_offsets")
+            .and_then(|o| o.as_array())
+            .and_then(|o| Some((o.first()?.as_u64()? as usize, o.get(1)?.as_u64()? as usize)))
+            .ok_or_else(|| bad(&format!("tensor {name} has no data_offsets")))?;
+        let slice = data
+            .get(offsets.0..offsets.1)
+            .ok_or_else(|| bad(&format!("tensor {name} lies outside the data")))?;
+        let begin = out_data.len();
+        out_data.extend_from_slice(slice);
+        let mut e: BTreeMap<String, Value> =
+            serde_json::from_value(entry).map_err(|e| bad(&e.to_string()))?;
+        e.insert(
+            "data_offsets".into(),
+            Value::from(vec![begin as u64, out_data.len() as u64]),
+        );
+        out_header.insert(name, Value::Object(e.into_iter().collect()));
+    }
+    let mut text = serde_json::to_vec(&Value::Object(out_header)).map_err(|e| bad(&e.to_string()))?;
+    while text.len() % 8 != 0 {
+        text.push(b' ');
+    }
+    let mut out = Vec::with_capacity(8 + text.len() + out_data.len());
+    out.extend_from_slice(&(text.len() as u64).to_le_bytes());
+    out.extend_from_slice(&text);
+    out.extend_from_slice(&out_data);
+    Ok(out)
 }
 
 /// Writes `model` and its config to `path` atomically.
@@ -104,4 +160,78 @@ pub fn from_bytes(bytes: &[u8], what: &Path, device: &Device) -> Result<(Mms, Mm
 pub fn load(path: &Path, device: &Device) -> Result<(Mms, MmsConfig)> {
     let bytes = io::read_bytes(path)?;
     from_bytes(&bytes, path, device)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A safetensors file by hand: `entries` are (name, f32 values) written in the given order,
+    /// the metadata keys in the given order.
+    fn handmade(entries: &[(&str, &[f32])], meta: &[(&str, &str)]) -> Vec<u8> {
+        let mut header = String::from("{");
+        let mut data = Vec::new();
+        for (k, v) in meta.iter().enumerate() {
+            if k == 0 {
+                header += "\"__metadata__\":{";
+            }
+            header += &format!("\"{}\":\"{}\"", v.0, v.1);
+            header += if k + 1 == meta.len() { "}," } else { "," };
+        }
+        for (i, (name, values)) in entries.iter().enumerate() {
+            let begin = data.len();
+            for v in *values {
+                data.extend_from_slice(&v.to_le_bytes());
+            }
+            header += &format!(
+                "\"{name}\":{{\"dtype\":\"F32\",\"shape\":[{}],\"data_offsets\":[{begin},{}]}}",
+                values.len(),
+                data.len()
+            );
+            if i + 1 < entries.len() {
+                header += ",";
+            }
+        }
+        header += "}";
+        let mut out = (header.len() as u64).to_le_bytes().to_vec();
+        out.extend_from_slice(header.as_bytes());
+        out.extend_from_slice(&data);
+        out
+    }
+
+    #[test]
+    fn the_same_content_in_any_order_gives_the_same_bytes() {
+        let a = handmade(
+            &[("b", &[1.0, 2.0]), ("a", &[3.0])],
+            &[("x", "1"), ("format", "pt")],
+        );
+        let b = handmade(
+            &[("a", &[3.0]), ("b", &[1.0, 2.0])],
+            &[("format", "pt"), ("x", "1")],
+        );
+        assert_ne!(a, b);
+        let (ca, cb) = (canonical_safetensors(&a).unwrap(), canonical_safetensors(&b).unwrap());
+        assert_eq!(ca, cb);
+        let n = u64::from_le_bytes(ca[..8].try_into().unwrap()) as usize;
+        assert_eq!(n % 8, 0, "header padded to 8 bytes");
+        // The data follows the sorted names: a (3.0) then b (1.0, 2.0).
+        assert_eq!(&ca[8 + n..8 + n + 4], &3.0f32.to_le_bytes());
+        assert_eq!(canonical_safetensors(&ca).unwrap(), ca, "idempotent");
+        assert!(canonical_safetensors(&a[..20]).is_err());
+    }
+
+    #[test]
+    fn equal_models_serialise_to_equal_bytes_and_load_back() {
+        let dev = Device::flex();
+        let cfg = MmsConfig::named("mms-small").unwrap();
+        dev.seed(7);
+        let m = Mms::new(&cfg, &dev);
+        let first = to_bytes(&m, &cfg).unwrap();
+        for _ in 0..4 {
+            assert_eq!(to_bytes(&m, &cfg).unwrap(), first);
+        }
+        let (back, back_cfg) = from_bytes(&first, Path::new("mem"), &dev).unwrap();
+        assert_eq!(back_cfg, cfg);
+        assert_eq!(to_bytes(&back, &back_cfg).unwrap(), first);
+    }
 }

@@ -199,6 +199,7 @@ impl Camera {
 
     /// Images `scene` (linear intensity in [0, 1]) through the camera. `seed` keys the noise.
     pub fn apply(&self, scene: &Image, seed: u64) -> Result<Image> {
+        scene.check_nonempty("input image")?;
         scene.check_finite("input image")?;
         // Brightness then blur is one pass (the blur writes a new frame, so no copy either).
         let (mut img, mut i) = match &self.stages[..] {

@@ -13,16 +13,32 @@ pub struct Psf {
 impl Psf {
     /// Validates and normalises a kernel image; `what` names it in errors.
     ///
-    /// Rejects non-finite or negative samples, zero channels and channels summing to 0.
-    /// An even height (width) is padded with one row (column) of zeros at the bottom (right),
-    /// so the kernel's centre moves half a pixel up (left) relative to a symmetric even kernel.
-    /// Each channel is then scaled to sum 1 (sums in f64).
+    /// Rejects empty kernels, channel counts other than 1 (grey) or 3 (RGB), even heights or
+    /// widths (an even kernel has no centre pixel, so where the blur is centred would be a
+    /// guess: half a pixel of shift in every image), non-finite or negative samples and
+    /// channels summing to 0. Each channel is then scaled to sum 1 (sums in f64).
     pub fn from_image(img: Image, what: &str) -> Result<Psf> {
         let (c, h, w) = img.shape();
         if c == 0 || h == 0 || w == 0 {
             return Err(Error::invalid(
                 what,
                 format!("empty PSF of shape {c}x{h}x{w}"),
+            ));
+        }
+        if c != 1 && c != 3 {
+            return Err(Error::invalid(
+                what,
+                format!("a PSF has 1 (grey) or 3 (RGB) channels, this one has {c}"),
+            ));
+        }
+        if h % 2 == 0 || w % 2 == 0 {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "a PSF needs an odd width and height so that its centre is a pixel, \
+                     this one is {w}x{h}; crop it (or pad one row/column of zeros) around \
+                     the pixel that should be the centre"
+                ),
             ));
         }
         img.check_finite(what)?;
@@ -39,8 +55,7 @@ impl Psf {
                 ),
             ));
         }
-        let (ph, pw) = (h | 1, w | 1);
-        let mut out = Image::zeros(c, ph, pw);
+        let mut out = Image::zeros(c, h, w);
         for ch in 0..c {
             let src = img.plane(ch);
             let sum: f64 = src.iter().map(|&v| v as f64).sum();
@@ -53,7 +68,7 @@ impl Psf {
             let dst = out.plane_mut(ch);
             for y in 0..h {
                 for x in 0..w {
-                    dst[y * pw + x] = (src[y * w + x] as f64 / sum) as f32;
+                    dst[y * w + x] = (src[y * w + x] as f64 / sum) as f32;
                 }
             }
         }
@@ -211,7 +226,7 @@ mod tests {
 
     #[test]
     fn rejects_bad_kernels() {
-        let mut im = Image::filled(2, 3, 3, 1.0);
+        let mut im = Image::filled(3, 3, 3, 1.0);
         im.set(1, 2, 0, f32::NAN);
         assert!(
             Psf::from_image(im, "k")
@@ -227,7 +242,7 @@ mod tests {
                 .to_string()
                 .contains("negative")
         );
-        let mut im = Image::filled(2, 3, 3, 1.0);
+        let mut im = Image::filled(3, 3, 3, 1.0);
         im.plane_mut(1).fill(0.0);
         assert!(
             Psf::from_image(im, "k")
@@ -239,18 +254,23 @@ mod tests {
     }
 
     #[test]
-    fn normalises_and_pads_even_sizes() {
-        let im = Image::from_vec(1, 2, 3, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]).unwrap();
+    fn normalises_and_refuses_even_sizes_and_odd_channel_counts() {
+        let im = Image::from_vec(1, 3, 1, vec![1.0, 2.0, 3.0]).unwrap();
         let p = Psf::from_image(im, "k").unwrap();
-        assert_eq!(p.size(), (3, 3));
+        assert_eq!(p.size(), (3, 1));
         assert!((sum(p.channel(0)) - 1.0).abs() < 1e-6);
-        assert_eq!(&p.channel(0)[6..], &[0.0, 0.0, 0.0]);
-        assert!((p.channel(0)[5] - 6.0 / 21.0).abs() < 1e-7);
-        let p = Psf::from_image(Image::filled(3, 4, 4, 2.0), "k").unwrap();
-        assert_eq!(p.size(), (5, 5));
-        for c in 0..3 {
-            assert!((sum(p.channel(c)) - 1.0).abs() < 1e-6);
-            assert_eq!(p.channel(c)[4], 0.0);
+        assert!((p.channel(0)[2] - 0.5).abs() < 1e-7);
+        for (c, h, w) in [(1, 2, 3), (3, 4, 4), (3, 9, 8)] {
+            let err = Psf::from_image(Image::filled(c, h, w, 2.0), "k")
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("odd width and height"), "{err}");
+        }
+        for c in [2, 4] {
+            let err = Psf::from_image(Image::filled(c, 3, 3, 1.0), "k")
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("1 (grey) or 3 (RGB) channels"), "{err}");
         }
     }
 

@@ -108,6 +108,20 @@ impl Image {
         }
     }
 
+    /// Fails when a side or the channel count is zero: such an image holds no pixel to process.
+    pub fn check_nonempty(&self, what: &str) -> Result<()> {
+        if self.channels == 0 || self.height == 0 || self.width == 0 {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "empty image ({} channels, {}x{} pixels): every side must be at least 1",
+                    self.channels, self.width, self.height
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Fails unless every sample is finite.
     pub fn check_finite(&self, what: &str) -> Result<()> {
         match self.data.iter().position(|v| !v.is_finite()) {
@@ -137,6 +151,15 @@ mod tests {
         let im = Image::from_vec(3, 2, 2, (0..12).map(|v| v as f32).collect()).unwrap();
         assert_eq!(im.get(1, 1, 0), 6.0);
         assert_eq!(im.plane(2), &[8.0, 9.0, 10.0, 11.0]);
+    }
+
+    #[test]
+    fn empty_images_are_named() {
+        for (c, h, w) in [(3, 0, 16), (1, 16, 0), (0, 4, 4)] {
+            let err = Image::zeros(c, h, w).check_nonempty("img").unwrap_err();
+            assert!(err.to_string().contains("empty image"), "{err}");
+        }
+        assert!(Image::zeros(1, 1, 1).check_nonempty("img").is_ok());
     }
 
     #[test]

@@ -37,22 +37,11 @@ impl InputPadder {
     }
 
     /// # Shapes
-    /// `[B, C, H, W]` → `[B, C, H', W']`, edges replicated.
+    /// `[B, C, H, W]` → `[B, C, H', W']`, edges replicated. An edge that gets no padding (one
+    /// side of an odd total, or a side already a multiple of 8) adds nothing.
     pub fn pad(&self, x: Tensor<4>) -> Tensor<4> {
-        let mut x = x;
-        let [b, c, h, w] = x.dims();
-        if self.top + self.bottom > 0 {
-            let first = x.clone().narrow(2, 0, 1).expand([b, c, self.top, w]);
-            let last = x.clone().narrow(2, h - 1, 1).expand([b, c, self.bottom, w]);
-            x = Tensor::cat(vec![first, x, last], 2);
-        }
-        let h = h + self.top + self.bottom;
-        if self.left + self.right > 0 {
-            let first = x.clone().narrow(3, 0, 1).expand([b, c, h, self.left]);
-            let last = x.clone().narrow(3, w - 1, 1).expand([b, c, h, self.right]);
-            x = Tensor::cat(vec![first, x, last], 3);
-        }
-        x
+        let x = replicate_edges(x, 2, self.top, self.bottom);
+        replicate_edges(x, 3, self.left, self.right)
     }
 
     /// # Shapes
@@ -61,6 +50,30 @@ impl InputPadder {
         x.narrow(2, self.top, self.height)
             .narrow(3, self.left, self.width)
     }
+}
+
+/// `x` with its first slice along `dim` repeated `before` times in front and its last slice
+/// repeated `after` times behind.
+fn replicate_edges(x: Tensor<4>, dim: usize, before: usize, after: usize) -> Tensor<4> {
+    if before + after == 0 {
+        return x;
+    }
+    let n = x.dims()[dim];
+    let edge = |at: usize, times: usize| {
+        let slice = x.clone().narrow(dim, at, 1);
+        let mut shape = slice.dims();
+        shape[dim] = times;
+        slice.expand(shape)
+    };
+    let mut parts = Vec::with_capacity(3);
+    if before > 0 {
+        parts.push(edge(0, before));
+    }
+    parts.push(x.clone());
+    if after > 0 {
+        parts.push(edge(n - 1, after));
+    }
+    Tensor::cat(parts, dim)
 }
 
 #[cfg(test)]
@@ -81,5 +94,30 @@ mod tests {
         let back = p.unpad(y);
         let d: f32 = (back - x).abs().max().into_scalar();
         assert_eq!(d, 0.0);
+    }
+
+    /// Every residue mod 8 on both axes, including the ones that pad one edge only (7 mod 8:
+    /// one row, all of it at the bottom; KITTI's 375 rows are such a size).
+    #[test]
+    fn pads_every_residue_with_replicated_edges() {
+        let dev = Device::flex();
+        for h in 1..=17 {
+            for w in [1, 2, 7, 8, 9, 15, 23] {
+                let p = InputPadder::new(h, w, 8);
+                let (ph, pw) = p.padded_size();
+                assert!(ph % 8 == 0 && pw % 8 == 0 && ph >= h && pw >= w, "{h}x{w}");
+                let v: Vec<f32> = (0..h * w).map(|i| i as f32).collect();
+                let x = Tensor::<4>::from_data(TensorData::new(v, [1, 1, h, w]), &dev);
+                let y = p.pad(x.clone());
+                assert_eq!(y.dims(), [1, 1, ph, pw], "{h}x{w}");
+                let yv: Vec<f32> = y.clone().into_data().try_to_vec::<f32>().unwrap();
+                // Corners of the padded map are the image's corners.
+                assert_eq!(yv[0], 0.0);
+                assert_eq!(yv[ph * pw - 1], (h * w - 1) as f32);
+                let back = p.unpad(y);
+                let d: f32 = (back - x).abs().max().into_scalar();
+                assert_eq!(d, 0.0, "{h}x{w}");
+            }
+        }
     }
 }

@@ -84,37 +84,90 @@ impl TrainConfig {
 
     pub fn validate(&self) -> Result<()> {
         self.model_config()?;
-        let checks: [(&str, bool); 12] = [
-            ("steps", self.steps > 0),
-            ("batch_size", (1..=256).contains(&self.batch_size)),
-            ("crop", self.crop.iter().all(|&c| c >= 64 && c % 8 == 0)),
-            ("iters", (1..=64).contains(&self.iters)),
-            ("lr", self.lr.is_finite() && self.lr > 0.0 && self.lr <= 1.0),
-            ("pct_start", (0.0..1.0).contains(&self.pct_start)),
+        let finite_in = |v: f64, lo: f64, hi: f64| v.is_finite() && v > lo && v <= hi;
+        let checks: [(&str, bool, &str); 13] = [
+            ("steps", self.steps > 0, "at least 1"),
+            (
+                "batch_size",
+                (1..=256).contains(&self.batch_size),
+                "in 1..=256",
+            ),
+            (
+                "crop",
+                self.crop.iter().all(|&c| c >= 64 && c % 8 == 0),
+                "sides that are multiples of 8, at least 64",
+            ),
+            ("iters", (1..=64).contains(&self.iters), "in 1..=64"),
+            ("lr", finite_in(self.lr, 0.0, 1.0), "a number in (0, 1]"),
+            (
+                "pct_start",
+                (0.0..1.0).contains(&self.pct_start),
+                "a number in [0, 1)",
+            ),
             (
                 "weight_decay",
                 self.weight_decay.is_finite() && self.weight_decay >= 0.0,
+                "a finite number >= 0",
             ),
-            ("clip", self.clip.is_finite() && self.clip > 0.0),
-            ("rho", self.rho > 0.0 && self.rho <= 1.0),
+            (
+                "epsilon",
+                finite_in(self.epsilon, 0.0, 1.0),
+                "a number in (0, 1] (AdamW divides by sqrt(v) + epsilon)",
+            ),
+            ("clip", finite_in(self.clip, 0.0, f64::MAX), "a finite number > 0"),
+            (
+                "rho",
+                finite_in(self.rho as f64, 0.0, 1.0),
+                "a number in (0, 1]",
+            ),
             (
                 "val_fraction",
                 self.val_fraction > 0.0 && self.val_fraction < 1.0,
+                "a number in (0, 1)",
             ),
             (
                 "val_every/checkpoint_every",
                 self.val_every > 0 && self.checkpoint_every > 0,
+                "at least 1",
             ),
-            ("val_iters", (1..=64).contains(&self.val_iters)),
+            ("val_iters", (1..=64).contains(&self.val_iters), "in 1..=64"),
         ];
-        for (name, ok) in checks {
+        for (name, ok, expected) in checks {
             if !ok {
+                let value = serde_json::to_value(self)
+                    .ok()
+                    .and_then(|v| v.get(name).map(|x| x.to_string()))
+                    .unwrap_or_default();
                 return Err(Error::invalid(
                     format!("train.{name}"),
-                    "out of range (crop sides must be multiples of 8, at least 64)",
+                    format!("expected {expected}, got {value}"),
                 ));
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn out_of_range_values_are_named_with_their_range() {
+        assert!(TrainConfig::default().validate().is_ok());
+        for eps in [0.0, -1e-8, f64::NAN, f64::INFINITY] {
+            let cfg = TrainConfig {
+                epsilon: eps,
+                ..TrainConfig::default()
+            };
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.contains("train.epsilon") && err.contains("(0, 1]"), "{err}");
+        }
+        let cfg = TrainConfig {
+            crop: [100, 160],
+            ..TrainConfig::default()
+        };
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(err.contains("train.crop") && err.contains("[100,160]"), "{err}");
     }
 }
