@@ -120,10 +120,10 @@ pub(crate) struct EvalArgs {
 pub(crate) fn train(a: TrainArgs) -> Result<()> {
     use pins::flow::train::{TrainConfig, TrainOptions};
     let config = match &a.config {
-        Some(p) => TrainConfig::from_file(p)?,
-        None => TrainConfig::default(),
+        Some(p) => Some(TrainConfig::from_file(p)?),
+        None => None,
     };
-    let model = config.model_config()?;
+    let model = config.clone().unwrap_or_default().model_config()?;
     let params = pins::flow::weights::parameter_count(&pins::flow::model::Mms::new(
         &model,
         &burn::prelude::Device::flex(),
@@ -144,11 +144,21 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         progress: !a.quiet && std::io::stderr().is_terminal(),
     };
     let s = pins::flow::train::train(config, &opts)?;
+    if s.already_complete {
+        println!(
+            "{}: the run is already complete ({} of {} steps); nothing to do",
+            a.out.display(),
+            s.steps,
+            s.steps
+        );
+    }
     println!(
-        "{}: {} steps, last loss {:.4}, best validation EPE {}, {:.0} s of training",
+        "{}: {} steps, last loss {}, best validation EPE {}, {:.0} s of training",
         a.out.display(),
         s.steps,
-        s.last_loss,
+        s.last_loss
+            .map(|v| format!("{v:.4}"))
+            .unwrap_or_else(|| "–".into()),
         s.best_val_epe
             .map(|v| format!("{v:.3}"))
             .unwrap_or_else(|| "–".into()),

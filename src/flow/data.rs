@@ -64,6 +64,52 @@ impl FlowDataset {
         )
     }
 
+    /// Fails unless some pair has at least one known ground-truth vector. Reads the flows in
+    /// order and stops at the first known vector, so a normal dataset costs one flow file.
+    pub fn check_has_known_flow(&self) -> Result<()> {
+        for p in &self.pairs {
+            if let Some(path) = &p.flow {
+                let flow = io::read_flow(path)?;
+                if flow.valid_mask().iter().any(|&v| v) {
+                    return Ok(());
+                }
+            }
+        }
+        Err(Error::invalid(
+            "dataset",
+            format!(
+                "{}: none of its {} flow files holds a known vector (every pixel is unknown \
+                 or invalid), so there is nothing to train or score against",
+                self.root.display(),
+                self.pairs.len()
+            ),
+        ))
+    }
+
+    /// What identifies the dataset's content without reading it: the pairs' names and the
+    /// names (relative to the root) and byte sizes of their files, hashed (SHA-256). Moving the
+    /// folder keeps it; adding, removing, renaming or resizing a file changes it.
+    pub fn fingerprint(&self) -> Result<DataFingerprint> {
+        use sha2::{Digest, Sha256};
+        let mut hash = Sha256::new();
+        for p in &self.pairs {
+            hash.update(p.name.as_bytes());
+            hash.update([0]);
+            for f in [Some(&p.img1), Some(&p.img2), p.flow.as_ref()].into_iter().flatten() {
+                let rel = f.strip_prefix(&self.root).unwrap_or(f);
+                let len = std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len();
+                hash.update(rel.to_string_lossy().as_bytes());
+                hash.update([0]);
+                hash.update(len.to_le_bytes());
+            }
+        }
+        let digest = hash.finalize();
+        Ok(DataFingerprint {
+            pairs: self.pairs.len(),
+            sha256: digest.iter().map(|b| format!("{b:02x}")).collect(),
+        })
+    }
+
     /// Loads pair `i`: two 3-channel images of equal size and the flow (NaN where unknown).
     pub fn load(&self, i: usize) -> Result<(Image, Image, Flow)> {
         let p = &self.pairs[i];
@@ -82,6 +128,14 @@ impl FlowDataset {
         }
         Ok((to_rgb(a), to_rgb(b), flow))
     }
+}
+
+/// The identity of a dataset's content, stored in training checkpoints (see
+/// [`FlowDataset::fingerprint`]).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DataFingerprint {
+    pub pairs: usize,
+    pub sha256: String,
 }
 
 /// Repeats a grey channel three times; keeps 3 channels; drops alpha.

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::TrainConfig;
 use crate::error::{Error, Result};
+use crate::flow::data::DataFingerprint;
 use crate::io;
 
 /// What `state.json` records.
@@ -18,10 +19,57 @@ pub struct CheckpointState {
     pub model_file: String,
     pub optimizer_file: String,
     pub config: TrainConfig,
+    /// SHA-256 of the config's JSON: a resume with another config is refused.
+    #[serde(default)]
+    pub config_sha256: Option<String>,
     pub data: PathBuf,
+    /// The training data's fingerprint: a resume on other data is refused.
+    #[serde(default)]
+    pub data_fingerprint: Option<DataFingerprint>,
     pub best_val_epe: Option<f64>,
+    /// Loss of the last step taken.
+    #[serde(default)]
+    pub last_loss: Option<f64>,
     /// Wall-clock seconds of training so far, over all sessions.
     pub train_seconds: f64,
+}
+
+/// SHA-256 (hex) of a config's JSON, the key order being the struct's.
+pub fn config_sha256(config: &TrainConfig) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let json = serde_json::to_vec(config).map_err(|e| Error::invalid("config", e.to_string()))?;
+    let digest = Sha256::digest(&json);
+    Ok(digest.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// The settings in which `given` differs from `stored`, as `key: stored → given` lines (nested
+/// keys joined with dots), in the config's key order.
+pub fn config_differences(stored: &TrainConfig, given: &TrainConfig) -> Vec<String> {
+    fn walk(prefix: &str, a: &serde_json::Value, b: &serde_json::Value, out: &mut Vec<String>) {
+        match (a, b) {
+            (serde_json::Value::Object(x), serde_json::Value::Object(y)) => {
+                for (k, va) in x {
+                    let key = if prefix.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{prefix}.{k}")
+                    };
+                    match y.get(k) {
+                        Some(vb) => walk(&key, va, vb, out),
+                        None => out.push(format!("{key}: {va} → (absent)")),
+                    }
+                }
+            }
+            _ if a != b => out.push(format!("{prefix}: {a} → {b}")),
+            _ => {}
+        }
+    }
+    let (Ok(a), Ok(b)) = (serde_json::to_value(stored), serde_json::to_value(given)) else {
+        return vec!["(the configs cannot be compared)".into()];
+    };
+    let mut out = Vec::new();
+    walk("", &a, &b, &mut out);
+    out
 }
 
 /// The checkpoint folder of a run.

@@ -48,21 +48,53 @@ pub struct TrainOptions {
 #[derive(Clone, Debug, Serialize)]
 pub struct TrainSummary {
     pub steps: usize,
-    pub last_loss: f64,
+    /// Loss of the last step taken (`None` when no step was ever taken).
+    pub last_loss: Option<f64>,
     pub best_val_epe: Option<f64>,
     pub train_seconds: f64,
     pub parameters: usize,
+    /// The run had already taken all its steps: nothing was trained in this call.
+    pub already_complete: bool,
+}
+
+/// Refuses to resume with a config other than the run's, naming each setting that differs.
+fn refuse_other_config(stored: &TrainConfig, given: &TrainConfig, opts: &TrainOptions) -> Result<()> {
+    // `--steps` overrides the file's step count when the run starts; compare like with like.
+    let mut given = given.clone();
+    if let Some(s) = opts.steps {
+        given.steps = s;
+    }
+    let diffs = checkpoint::config_differences(stored, &given);
+    if diffs.is_empty() {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "--config",
+        format!(
+            "the run in {} was started with another config ({} → given): {}; resume without \
+             --config (the run keeps its own) or start a new run",
+            opts.out.display(),
+            "checkpoint",
+            diffs.join(", ")
+        ),
+    ))
 }
 
 fn record_error(what: &str, e: impl std::fmt::Display) -> Error {
     Error::invalid(what, e.to_string())
 }
 
-/// Trains (or resumes) a run.
-pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
+/// Trains (or resumes) a run. `config` is the run's config: required to be equal to the stored
+/// one when resuming (`None` then means "the stored one"), the defaults when `None` on a new run.
+pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSummary> {
     let existing = checkpoint::read(&opts.out)?;
     let (mut config, start) = match (&existing, opts.resume) {
-        (Some((state, _, _)), true) => (state.config.clone(), state.step),
+        (Some((state, _, _)), true) => {
+            if let Some(given) = &config {
+                refuse_other_config(&state.config, given, opts)?;
+            }
+            (state.config.clone(), state.step)
+        }
         (None, true) => {
             return Err(Error::invalid(
                 "--resume",
@@ -78,7 +110,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
                 ),
             ));
         }
-        (None, false) => (config, 0),
+        (None, false) => (config.unwrap_or_default(), 0),
     };
     if let Some(s) = opts.steps {
         if opts.resume && s != config.steps {
@@ -95,6 +127,40 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     config.validate()?;
     let model_config = config.model_config()?;
     let dataset = FlowDataset::open(&opts.data)?;
+    let fingerprint = dataset.fingerprint()?;
+    if let Some((state, _, _)) = &existing
+        && let Some(stored) = &state.data_fingerprint
+        && *stored != fingerprint
+    {
+        return Err(Error::invalid(
+            "--data",
+            format!(
+                "the run in {} was trained on {} ({} pairs, fingerprint {}), but {} holds {} \
+                 pairs (fingerprint {}): resuming on other data would silently change the run; \
+                 start a new run (--init with its weights to fine-tune)",
+                opts.out.display(),
+                state.data.display(),
+                stored.pairs,
+                &stored.sha256[..12.min(stored.sha256.len())],
+                opts.data.display(),
+                fingerprint.pairs,
+                &fingerprint.sha256[..12],
+            ),
+        ));
+    }
+    if let Some((state, _, _)) = &existing
+        && start >= config.steps
+    {
+        return Ok(TrainSummary {
+            steps: start,
+            last_loss: state.last_loss,
+            best_val_epe: state.best_val_epe,
+            train_seconds: state.train_seconds,
+            parameters: weights::parameter_count(&Mms::new(&model_config, &Device::flex())),
+            already_complete: true,
+        });
+    }
+    dataset.check_has_known_flow()?;
     let (train_set, val_set) = dataset.split(config.val_fraction);
     // Fail early on images smaller than the crop.
     let (a, _, _) = train_set.load(0)?;
@@ -147,6 +213,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         .init();
     let mut best_val = None;
     let mut seconds = 0.0;
+    let mut existing_last_loss = None;
     if let Some((state, model_bytes, optim_bytes)) = existing {
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
             .map_err(|e| record_error("checkpoint model", e))?;
@@ -158,6 +225,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             .map_err(|e| record_error("checkpoint optimiser", e))?;
         best_val = state.best_val_epe;
         seconds = state.train_seconds;
+        existing_last_loss = state.last_loss;
     }
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
     let run_json = serde_json::json!({"train": config, "model": model_config, "data": opts.data});
@@ -180,7 +248,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_position(start as u64);
-    let mut last_loss = f64::NAN;
+    let mut last_loss = existing_last_loss;
     let mut step = start;
     let stop = opts
         .stop_after
@@ -239,14 +307,14 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         }
         model = optim.step(lr, model, grads);
         step += 1;
-        last_loss = loss_value as f64;
+        last_loss = Some(loss_value as f64);
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         seconds += ms / 1e3;
 
         let mut row = LogRow {
             step,
             lr,
-            loss: last_loss,
+            loss: loss_value as f64,
             epe: epe as f64,
             grad_norm,
             ms_per_step: ms,
@@ -277,7 +345,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         log.append(&row)?;
         bar.set_message(format!(
             "loss {:.3} epe {:.2}{}",
-            last_loss,
+            loss_value,
             epe,
             best_val.map(|v| format!(" val {v:.2}")).unwrap_or_default()
         ));
@@ -296,8 +364,11 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
                 model_file: format!("model-{step:07}.bpk"),
                 optimizer_file: format!("optim-{step:07}.bin"),
                 config: config.clone(),
+                config_sha256: Some(checkpoint::config_sha256(&config)?),
                 data: opts.data.clone(),
+                data_fingerprint: Some(fingerprint.clone()),
                 best_val_epe: best_val,
+                last_loss,
                 train_seconds: seconds,
             };
             checkpoint::write(&opts.out, &state, &model_bytes, &optim_bytes)?;
@@ -316,6 +387,7 @@ pub fn train(config: TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         best_val_epe: best_val,
         train_seconds: seconds,
         parameters,
+        already_complete: false,
     })
 }
 
