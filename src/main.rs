@@ -24,6 +24,10 @@ use cli::track::{TrackArgs, track};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Largest image or flow (width × height) any reader accepts; files declaring more are
+    /// refused before decoding. Default: 64000000 (64 MP, sized for a 24 GB machine).
+    #[arg(long, global = true, value_name = "N")]
+    max_pixels: Option<u64>,
 }
 
 #[derive(Subcommand)]
@@ -72,6 +76,9 @@ fn main() {
         unsafe { libmimalloc_sys::mi_option_set(MI_OPTION_PURGE_DELAY, -1) };
     }
     let cli = parse_cli();
+    if let Some(n) = cli.max_pixels {
+        pins::io::budget::set_max_pixels(n);
+    }
     // The command runs on a worker thread of rayon's pool. Each parallel kernel it calls (a
     // convolution, a lookup) then splits its work among the workers directly; called from outside
     // the pool, every call would be handed over to the pool and the calling thread parked until it

@@ -13,9 +13,13 @@ use pins::scene::ChairsConfig;
 
 /// A few small pairs with flow, through the ideal camera (fast).
 fn tiny_dataset(dir: &Path) -> PathBuf {
-    let out = dir.join("data");
+    tiny_dataset_of(dir, "data", 4)
+}
+
+fn tiny_dataset_of(dir: &Path, name: &str, count: usize) -> PathBuf {
+    let out = dir.join(name);
     let cfg = GeneratorConfig {
-        count: 4,
+        count,
         seed: 3,
         scene: SceneSpec::Chairs(ChairsConfig {
             width: 80,
@@ -98,6 +102,61 @@ fn resume_continues_exactly() {
         losses(&straight),
         losses(&chunked),
         "a resumed run must repeat the same steps"
+    );
+    // Same inputs, same bytes: the weights and checkpoints of the two runs are one file.
+    for name in [
+        "last.safetensors",
+        "best.safetensors",
+        "checkpoint/model-0000004.bpk",
+        "checkpoint/optim-0000004.bin",
+    ] {
+        assert!(
+            fs::read(straight.join(name)).unwrap() == fs::read(chunked.join(name)).unwrap(),
+            "{name} differs between an interrupted and an uninterrupted run"
+        );
+    }
+    // Resuming a finished run says so, with the run's last loss.
+    let out = ok(&pins(&[
+        "train", "--config", c, "--data", d, "--out", co, "--resume", "--quiet",
+    ]));
+    assert!(
+        out.contains("already complete") && !out.contains("NaN"),
+        "{out}"
+    );
+    // Another config or other data is refused on resume, naming what differs.
+    let other = tmp.path().join("other.json");
+    let text = fs::read_to_string(&cfg)
+        .unwrap()
+        .replace(r#""model": "mms-small","#, r#""model": "mms-small", "lr": 0.001,"#);
+    fs::write(&other, text).unwrap();
+    let before = fs::read(chunked.join("checkpoint/state.json")).unwrap();
+    let err = failed(&pins(&[
+        "train",
+        "--config",
+        other.to_str().unwrap(),
+        "--data",
+        d,
+        "--out",
+        co,
+        "--resume",
+        "--quiet",
+    ]));
+    assert!(err.contains("lr: 0.0004 → 0.001"), "{err}");
+    let data2 = tiny_dataset_of(tmp.path(), "data2", 5);
+    let err = failed(&pins(&[
+        "train",
+        "--data",
+        data2.to_str().unwrap(),
+        "--out",
+        co,
+        "--resume",
+        "--quiet",
+    ]));
+    assert!(err.contains("--data") && err.contains("5 pairs"), "{err}");
+    assert_eq!(
+        fs::read(chunked.join("checkpoint/state.json")).unwrap(),
+        before,
+        "a refused resume leaves the run as it was"
     );
     // Same weights: the same flow to the last bit (the files may order their tensors differently).
     let dev = burn::prelude::Device::flex();
@@ -309,6 +368,33 @@ fn bad_input_fails_clearly_without_output() {
     ]));
     assert!(err.contains("/no/such/data"), "{err}");
     assert!(!t.join("run").exists());
+    // A dataset whose every flow vector is unknown: refused before any work or output.
+    let unknown = t.join("unknown");
+    fs::create_dir_all(&unknown).unwrap();
+    for k in 0..2 {
+        fs::copy(&i1, unknown.join(format!("0000{k}_img1.png"))).unwrap();
+        fs::copy(&i2, unknown.join(format!("0000{k}_img2.png"))).unwrap();
+        let nan = pins::Flow::from_vec(64, 80, vec![f32::NAN; 2 * 64 * 80]).unwrap();
+        pins::io::write_flo(&unknown.join(format!("0000{k}_flow.flo")), &nan).unwrap();
+    }
+    let err = failed(&pins(&[
+        "eval",
+        "--data",
+        unknown.to_str().unwrap(),
+        "--out",
+        report.to_str().unwrap(),
+    ]));
+    assert!(err.contains("known vector"), "{err}");
+    assert!(!report.exists() && !report.with_extension("png").exists());
+    let err = failed(&pins(&[
+        "train",
+        "--data",
+        unknown.to_str().unwrap(),
+        "--out",
+        t.join("run").to_str().unwrap(),
+    ]));
+    assert!(err.contains("known vector"), "{err}");
+    assert!(!t.join("run").exists(), "no run folder for a refused dataset");
 }
 
 #[test]

@@ -238,6 +238,7 @@ pub(crate) fn eval(a: EvalArgs) -> Result<()> {
         bail!("--iters values must be 1..=256");
     }
     let data = FlowDataset::open(&a.data)?;
+    data.check_has_known_flow()?;
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
     let report = evaluate(
         &predictor.model,

@@ -83,6 +83,15 @@ pub fn evaluate(
     for (_, _, gt) in &pairs {
         zero.add(&Flow::zeros(gt.height(), gt.width()), gt, None)?;
     }
+    if zero.scores().pixels == 0 {
+        return Err(Error::invalid(
+            "dataset",
+            format!(
+                "{}: no pair holds a known ground-truth vector; there is nothing to score",
+                data.root.display()
+            ),
+        ));
+    }
     // One untimed pass so that allocation warm-up does not land on the first row.
     if let Some((a, b, _)) = pairs.first() {
         predict_flow(model, config, a, b, 1, device)?;

@@ -22,7 +22,7 @@ pub struct Region {
 }
 
 /// All regions with at least `min_area` pixels whose |flow| > `threshold`, largest first.
-/// Non-finite flow is an error (a reader's unknown vectors must be masked before tracking).
+/// Unknown vectors (NaN, as readers return them) are not moving: they join no region.
 pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Region>> {
     if !(threshold.is_finite() && threshold >= 0.0) {
         return Err(Error::invalid(
@@ -32,20 +32,13 @@ pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Regio
     }
     let (h, w) = (flow.height(), flow.width());
     let (u, v) = (flow.u(), flow.v());
-    if let Some(i) = u
-        .iter()
-        .zip(v)
-        .position(|(a, b)| !a.is_finite() || !b.is_finite())
-    {
-        return Err(Error::invalid(
-            "flow",
-            format!("non-finite vector at row {}, column {}", i / w, i % w),
-        ));
-    }
     let moving: Vec<bool> = u
         .iter()
         .zip(v)
-        .map(|(a, b)| ((a * a + b * b) as f64).sqrt() > threshold)
+        .map(|(a, b)| {
+            let m = ((a * a + b * b) as f64).sqrt();
+            m.is_finite() && m > threshold
+        })
         .collect();
     let mut label = vec![false; h * w];
     let mut out = Vec::new();
@@ -106,6 +99,26 @@ pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Regio
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unknown_vectors_belong_to_no_region() {
+        let mut f = Flow::zeros(12, 12);
+        for y in 0..12 {
+            for x in 0..4 {
+                f.set(y, x, f32::NAN, f32::NAN);
+            }
+            for x in 6..9 {
+                f.set(y, x, 2.0, 0.0);
+            }
+            f.set(y, 10, f32::INFINITY, 0.0);
+        }
+        let r = regions(&f, 0.5, 5).unwrap();
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].pixels, 36);
+        assert_eq!(r[0].bbox, [6, 0, 8, 11]);
+        let all_unknown = Flow::from_vec(4, 4, vec![f32::NAN; 32]).unwrap();
+        assert!(regions(&all_unknown, 0.0, 1).unwrap().is_empty());
+    }
 
     #[test]
     fn largest_region_centroid_and_leftward_direction() {

@@ -101,6 +101,18 @@ pub fn track_sequence(
     if opts.horizons.is_empty() || opts.horizons.iter().any(|&h| h == 0 || h > 10_000) {
         return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
     }
+    if !(opts.threshold.is_finite() && opts.threshold >= 0.0) {
+        return Err(Error::invalid(
+            "--threshold",
+            format!("must be a finite number >= 0 (px/frame), got {}", opts.threshold),
+        ));
+    }
+    if !(opts.noise_k.is_finite() && opts.noise_k >= 0.0) {
+        return Err(Error::invalid(
+            "--noise-k",
+            format!("must be a finite number >= 0, got {}", opts.noise_k),
+        ));
+    }
     let max_h = *opts.horizons.iter().max().unwrap_or(&1);
     let mut tracker = Tracker::new(opts.tracker.clone())?;
     let mut objects: BTreeMap<usize, Vec<FrameRecord>> = BTreeMap::new();
@@ -154,8 +166,8 @@ pub fn track_sequence(
 }
 
 /// Median flow magnitude plus `k` robust standard deviations (1.4826 × the median absolute
-/// deviation); 0 when `k` is 0. Non-finite vectors are skipped here (the region finder rejects
-/// them with a clear error).
+/// deviation); 0 when `k` is 0. Unknown (non-finite) vectors are skipped, as in the region
+/// finder.
 pub fn noise_floor(flow: &Flow, k: f64) -> f64 {
     if k <= 0.0 {
         return 0.0;
