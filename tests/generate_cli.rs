@@ -115,11 +115,29 @@ fn rerun_keeps_complete_samples_and_redoes_broken_ones() {
     ];
     ok(&pins(&args, None));
     let before = snapshot(&out);
-    // An interrupted run: one file missing, a stray temporary file.
+    // An interrupted run: one file missing, a temporary file left hours ago (stale whoever
+    // wrote it), and a fresh one that may be another run's write under way (kept).
     fs::remove_file(out.join("00003_img2.png")).unwrap();
-    fs::write(out.join(".00004_img1.png.tmp-1-1"), b"partial").unwrap();
+    let stale = out.join(".00004_img1.png.tmp-1-1");
+    fs::write(&stale, b"partial").unwrap();
+    let hours_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7 * 3600);
+    fs::File::options()
+        .write(true)
+        .open(&stale)
+        .unwrap()
+        .set_modified(hours_ago)
+        .unwrap();
+    let fresh = out.join(".00005_img1.png.tmp-some-host-1-1");
+    fs::write(&fresh, b"in flight").unwrap();
     let msg = ok(&pins(&args, None));
-    assert!(msg.contains("1 samples generated, 5 kept"), "{msg}");
+    assert!(
+        msg.contains("5 samples kept, 0 made, 1 repaired")
+            && msg.contains("00003_img2.png missing"),
+        "{msg}"
+    );
+    assert!(!stale.exists(), "a stale temporary was kept");
+    assert!(fresh.exists(), "a temporary that may be in use was removed");
+    fs::remove_file(&fresh).unwrap();
     assert_eq!(snapshot(&out), before);
     // A different config must not be mixed into the same folder.
     let err = failed(&pins(
@@ -440,4 +458,274 @@ fn mismatched_pair_in_a_dataset_is_an_error() {
         "{err}"
     );
     assert!(!out.join("00000_img1.png").exists());
+}
+
+/// The smallest useful config: a few 24×16 grey chairs scenes through an ideal lens with noise.
+const TINY: &str = r#"{"count": 4, "seed": 1,
+  "scene": {"kind": "chairs", "width": 24, "height": 16, "channels": 1, "sprites": [1, 2],
+            "supersample": 1},
+  "camera": {"psf": "delta"}}"#;
+
+/// Starts `pins` with each argument list at once (no waiting in between), then collects them.
+fn run_together(runs: &[Vec<String>]) -> Vec<std::process::Output> {
+    use std::process::{Command, Stdio};
+    let children: Vec<_> = runs
+        .iter()
+        .map(|args| {
+            Command::new(env!("CARGO_BIN_EXE_pins"))
+                .args(args)
+                .env("RAYON_NUM_THREADS", "1")
+                .stdout(Stdio::piped())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start pins")
+        })
+        .collect();
+    children
+        .into_iter()
+        .map(|c| c.wait_with_output().expect("wait for pins"))
+        .collect()
+}
+
+fn generate_args(cfg: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
+    let mut v: Vec<String> = ["generate", "--quiet", "--config"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    v.push(cfg.to_str().unwrap().into());
+    v.push("--out".into());
+    v.push(out.to_str().unwrap().into());
+    v.extend(extra.iter().map(|s| s.to_string()));
+    v
+}
+
+#[test]
+fn racing_runs_of_different_configs_leave_exactly_one_owner() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "tiny.json", TINY);
+    let seeds = ["1", "9", "17"];
+    // What each config alone makes.
+    let reference: Vec<_> = seeds
+        .iter()
+        .map(|s| {
+            let out = tmp.path().join(format!("ref{s}"));
+            ok(&pins(
+                &generate_args(&cfg, &out, &["--seed", s])
+                    .iter()
+                    .map(String::as_str)
+                    .collect::<Vec<_>>(),
+                Some(1),
+            ));
+            snapshot(&out)
+        })
+        .collect();
+    for round in 0..30 {
+        let out = tmp.path().join(format!("race{round}"));
+        let runs: Vec<_> = seeds
+            .iter()
+            .map(|s| generate_args(&cfg, &out, &["--seed", s]))
+            .collect();
+        let outs = run_together(&runs);
+        let winners: Vec<usize> = (0..outs.len())
+            .filter(|&k| outs[k].status.success())
+            .collect();
+        let report = |k: usize| String::from_utf8_lossy(&outs[k].stderr).into_owned();
+        assert_eq!(
+            winners.len(),
+            1,
+            "round {round}: {} runs succeeded; stderr: {:?}",
+            winners.len(),
+            (0..outs.len()).map(report).collect::<Vec<_>>()
+        );
+        for k in (0..outs.len()).filter(|k| !winners.contains(k)) {
+            let err = report(k);
+            assert!(
+                err.contains("another config") && err.contains(out.to_str().unwrap()),
+                "round {round}: {err}"
+            );
+        }
+        assert!(
+            snapshot(&out) == reference[winners[0]],
+            "round {round}: the folder is not exactly what seed {} alone makes",
+            seeds[winners[0]]
+        );
+    }
+}
+
+#[test]
+fn shards_started_together_make_what_one_run_makes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "tiny.json", TINY);
+    let one = tmp.path().join("one");
+    let single = generate_args(&cfg, &one, &["--count", "8"]);
+    ok(&pins(
+        &single.iter().map(String::as_str).collect::<Vec<_>>(),
+        Some(1),
+    ));
+    let reference = snapshot(&one);
+    assert_eq!(reference.len(), 8 * 4 + 2);
+    for round in 0..6 {
+        let out = tmp.path().join(format!("sharded{round}"));
+        let runs: Vec<_> = (0..4)
+            .map(|k| generate_args(&cfg, &out, &["--count", "8", "--shard", &format!("{k}/4")]))
+            .collect();
+        for (k, o) in run_together(&runs).iter().enumerate() {
+            assert!(
+                o.status.success(),
+                "round {round}, shard {k}/4: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        assert!(
+            snapshot(&out) == reference,
+            "round {round}: shards together differ from one run: {:?}",
+            snapshot(&out).keys().collect::<Vec<_>>()
+        );
+    }
+}
+
+/// A `NNNNN_meta.json` as older versions wrote it: bare file names, no sizes or hashes.
+fn old_format_meta(path: &Path) {
+    let mut v: serde_json::Value = serde_json::from_slice(&fs::read(path).unwrap()).unwrap();
+    let names: Vec<serde_json::Value> = v["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].clone())
+        .collect();
+    v["files"] = serde_json::Value::Array(names);
+    fs::write(path, v.to_string()).unwrap();
+}
+
+#[test]
+fn damaged_samples_are_found_by_verify_and_repaired_bit_identically() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "small.json", SMALL);
+    let out = tmp.path().join("ds");
+    let gen_args = generate_args(&cfg, &out, &["--count", "8"]);
+    let gen_args: Vec<&str> = gen_args.iter().map(String::as_str).collect();
+    let verify = ["generate", "--verify", "--out", out.to_str().unwrap()];
+    ok(&pins(&gen_args, None));
+    let before = snapshot(&out);
+    let msg = ok(&pins(&verify, None));
+    assert!(
+        msg.contains("8 of 8 samples verified (24 files") && msg.contains("manifest.json agrees"),
+        "{msg}"
+    );
+    // Every meta records each file's size and SHA-256, and the manifest lists the same.
+    let meta: serde_json::Value = serde_json::from_slice(&before["00002_meta.json"]).unwrap();
+    let flo = &meta["files"][2];
+    assert_eq!(flo["name"], "00002_flow.flo");
+    assert_eq!(flo["bytes"], before["00002_flow.flo"].len());
+    assert_eq!(flo["sha256"].as_str().unwrap().len(), 64);
+
+    // Damage of every kind: truncated, emptied, altered in the middle (same size), all gone,
+    // an older meta without hashes, an unparsable meta, a missing meta (interrupted write).
+    let img1 = before["00000_img1.png"].len();
+    fs::write(out.join("00000_img1.png"), &before["00000_img1.png"][..412]).unwrap();
+    fs::write(out.join("00001_flow.flo"), b"").unwrap();
+    let mut altered = before["00002_img2.png"].clone();
+    let mid = altered.len() / 2;
+    altered[mid] ^= 0xff;
+    fs::write(out.join("00002_img2.png"), &altered).unwrap();
+    for f in ["img1.png", "img2.png", "flow.flo", "meta.json"] {
+        fs::remove_file(out.join(format!("00003_{f}"))).unwrap();
+    }
+    old_format_meta(&out.join("00004_meta.json"));
+    fs::write(out.join("00005_meta.json"), b"{\"index\": 5, ").unwrap();
+    fs::remove_file(out.join("00006_meta.json")).unwrap();
+    let damaged = snapshot(&out);
+    let stamp = |p: &Path| fs::metadata(p).unwrap().modified().unwrap();
+    let dir_stamp = stamp(&out);
+
+    let err = failed(&pins(&verify, None));
+    for expected in [
+        format!("00000: 00000_img1.png truncated (412 of {img1} bytes)"),
+        format!(
+            "00001: 00001_flow.flo truncated (0 of {} bytes)",
+            before["00001_flow.flo"].len()
+        ),
+        "00002: 00002_img2.png does not match its hash".into(),
+        "00003: missing".into(),
+        "00004: metadata of an older format, without file hashes".into(),
+        "00005: metadata does not parse".into(),
+        "00006: metadata missing".into(),
+        "7 of 8 samples are bad".into(),
+    ] {
+        assert!(err.contains(&expected), "{expected:?} not in: {err}");
+    }
+    assert!(!err.contains("00007"), "{err}");
+    // --verify wrote nothing: not a byte, not a temporary (which would touch the folder).
+    assert_eq!(snapshot(&out), damaged);
+    assert_eq!(stamp(&out), dir_stamp, "--verify created or removed a file");
+
+    // A rerun redoes exactly the broken samples, bit-identical to the first run.
+    let msg = ok(&pins(&gen_args, None));
+    assert!(msg.contains("1 samples kept, 1 made, 6 repaired"), "{msg}");
+    assert!(
+        msg.contains("repaired 00002: 00002_img2.png does not match its hash"),
+        "{msg}"
+    );
+    assert!(
+        snapshot(&out) == before,
+        "repaired samples differ from a fresh run"
+    );
+    ok(&pins(&verify, None));
+
+    // The manifest must agree with the metas.
+    let manifest = out.join("manifest.json");
+    let text = String::from_utf8(before["manifest.json"].clone()).unwrap();
+    let sha = meta["files"][2]["sha256"].as_str().unwrap();
+    fs::write(&manifest, text.replace(sha, &"0".repeat(64))).unwrap();
+    let err = failed(&pins(&verify, None));
+    assert!(
+        err.contains("manifest.json: disagrees with the metadata of sample 00002"),
+        "{err}"
+    );
+    // A rerun rewrites it.
+    ok(&pins(&gen_args, None));
+    assert!(snapshot(&out) == before);
+
+    // --config/--count/--seed with --verify must be the folder's config.
+    let c = cfg.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    ok(&pins(
+        &[
+            "generate", "--verify", "--out", o, "--config", c, "--count", "8",
+        ],
+        None,
+    ));
+    ok(&pins(
+        &["generate", "--verify", "--out", o, "--seed", "42"],
+        None,
+    ));
+    for extra in [&["--seed", "43"][..], &["--config", c]] {
+        let mut args = vec!["generate", "--verify", "--out", o];
+        args.extend_from_slice(extra);
+        let err = failed(&pins(&args, None));
+        assert!(err.contains("another config"), "{extra:?}: {err}");
+    }
+    let err = failed(&pins(
+        &["generate", "--verify", "--out", o, "--shard", "0/2"],
+        None,
+    ));
+    assert!(err.contains("--shard"), "{err}");
+    // Not a dataset folder: an error naming it, and nothing created.
+    let none = tmp.path().join("nothing");
+    let err = failed(&pins(
+        &["generate", "--verify", "--out", none.to_str().unwrap()],
+        None,
+    ));
+    assert!(err.contains("nothing"), "{err}");
+    assert!(!none.exists());
+    let err = failed(&pins(
+        &[
+            "generate",
+            "--verify",
+            "--out",
+            tmp.path().to_str().unwrap(),
+        ],
+        None,
+    ));
+    assert!(err.contains("config.json"), "{err}");
 }

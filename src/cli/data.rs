@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 
+use pins::dataset::verify::ManifestCheck;
 use pins::dataset::{Generator, GeneratorConfig, Shard};
 use pins::imaging::{Camera, CameraConfig, psf_source};
 use pins::io::{self, BitDepth};
@@ -70,7 +71,9 @@ pub(crate) struct GenerateArgs {
     /// Generator config (JSON); the shipped defaults when absent.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Output folder.
+    /// Output folder. Its config.json records the config that owns it: a run of another config
+    /// is refused; runs of the same config (reruns, shards) share it, keep complete samples and
+    /// redo missing or damaged ones.
     #[arg(long, default_value = "out/dataset")]
     out: PathBuf,
     /// Number of samples (overrides the config).
@@ -79,12 +82,20 @@ pub(crate) struct GenerateArgs {
     /// Master seed (overrides the config).
     #[arg(long)]
     seed: Option<u64>,
-    /// Generate only shard K of N (K/N, 0-based): a contiguous block of samples.
+    /// Generate only shard K of N (K/N, 0-based): a contiguous block of samples. Shards may
+    /// run at the same time on one folder.
     #[arg(long, default_value = "0/1")]
     shard: String,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Check the folder given by --out without writing anything: every sample of its
+    /// config.json (metadata, and each file's size and SHA-256) and manifest.json if present.
+    /// Exits non-zero naming each bad sample. Without --config/--count/--seed the folder's own
+    /// config is used; with them, the config they make (--config, else the folder's, with
+    /// --count/--seed applied) must be the folder's, or it is an error.
+    #[arg(long, conflicts_with = "shard")]
+    verify: bool,
 }
 
 #[derive(clap::Args)]
@@ -122,6 +133,9 @@ pub(crate) struct SimulateArgs {
 }
 
 pub(crate) fn generate(a: GenerateArgs) -> Result<()> {
+    if a.verify {
+        return verify_dataset(&a);
+    }
     let mut config = match &a.config {
         Some(p) => GeneratorConfig::from_file(p)?,
         None => GeneratorConfig::default(),
@@ -140,13 +154,22 @@ pub(crate) fn generate(a: GenerateArgs) -> Result<()> {
         .run(&a.out, shard, progress)
         .with_context(|| format!("generating into {}", a.out.display()))?;
     let secs = started.elapsed().as_secs_f64();
+    const LISTED: usize = 20;
+    for line in summary.repairs.iter().take(LISTED) {
+        println!("repaired {line}");
+    }
+    if summary.repairs.len() > LISTED {
+        println!("… and {} more repaired", summary.repairs.len() - LISTED);
+    }
+    let written = summary.made + summary.repaired;
     println!(
-        "{}: {} samples generated, {} kept, in {:.1} s ({:.2} samples/s); camera stages: {}",
+        "{}: {} samples kept, {} made, {} repaired, in {:.1} s ({:.2} samples/s); camera stages: {}",
         a.out.display(),
-        summary.generated,
         summary.kept,
+        summary.made,
+        summary.repaired,
         secs,
-        summary.generated as f64 / secs.max(1e-9),
+        written as f64 / secs.max(1e-9),
         generator.stage_names().join(" → ")
     );
     if summary.manifest_written {
@@ -162,6 +185,68 @@ pub(crate) fn generate(a: GenerateArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `generate --verify`: reads only; the error lists every bad sample.
+fn verify_dataset(a: &GenerateArgs) -> Result<()> {
+    let expected = if a.config.is_some() || a.count.is_some() || a.seed.is_some() {
+        let mut config = match &a.config {
+            Some(p) => GeneratorConfig::from_file(p)?,
+            None => pins::dataset::folder::read_claim(&a.out)?,
+        };
+        if let Some(n) = a.count {
+            config.count = n;
+        }
+        if let Some(s) = a.seed {
+            config.seed = s;
+        }
+        Some(config)
+    } else {
+        None
+    };
+    let report = pins::dataset::verify(&a.out, expected.as_ref())?;
+    let manifest = match &report.manifest {
+        ManifestCheck::Agrees => "manifest.json agrees",
+        ManifestCheck::Absent => "no manifest.json yet (written once every sample is complete)",
+        ManifestCheck::Wrong(_) => "manifest.json is wrong",
+    };
+    let temporaries = match report.temporaries {
+        0 => String::new(),
+        n => format!("; {n} temporary files (of a run under way, or an interrupted one)"),
+    };
+    println!(
+        "{}: {} of {} samples verified ({} files, {:.1} MB hashed); {manifest}{temporaries}",
+        a.out.display(),
+        report.good,
+        report.total,
+        report.files,
+        report.bytes as f64 / 1e6,
+    );
+    if report.is_ok() {
+        return Ok(());
+    }
+    const LISTED: usize = 100;
+    let lines = report.problem_lines();
+    let mut msg = format!(
+        "{}: {} of {} samples are bad{}:",
+        a.out.display(),
+        report.problems.len(),
+        report.total,
+        if matches!(report.manifest, ManifestCheck::Wrong(_)) {
+            " and the manifest is wrong"
+        } else {
+            ""
+        }
+    );
+    for line in lines.iter().take(LISTED) {
+        msg.push_str("\n  ");
+        msg.push_str(line);
+    }
+    if lines.len() > LISTED {
+        msg.push_str(&format!("\n  … and {} more", lines.len() - LISTED));
+    }
+    msg.push_str("\nrerun `pins generate` with the same config and --out to repair them");
+    bail!(msg)
 }
 
 pub(crate) fn simulate(a: SimulateArgs) -> Result<()> {

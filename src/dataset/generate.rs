@@ -2,15 +2,15 @@
 //! (FlyingChairs naming) and a metadata sidecar per sample, in parallel, resumable, with
 //! every byte a function of (config, seed, sample index) alone.
 
-use std::fs;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::path::Path;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::config::{GeneratorConfig, SceneSpec};
+use super::folder;
+use super::integrity::{Depth, SampleProblem, check_sample, record_file};
 use super::manifest::{FlowStats, Manifest, SampleMeta};
 use crate::error::{Error, Result};
 use crate::imaging::{Camera, psf_source};
@@ -58,11 +58,33 @@ impl Shard {
 /// What a run did.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RunSummary {
-    pub generated: usize,
+    /// Samples of this run's shard made from nothing.
+    pub made: usize,
+    /// Samples of this run's shard redone because something of them was missing or wrong.
+    pub repaired: usize,
+    /// Samples of this run's shard found complete (every file matching its size and hash).
     pub kept: usize,
+    /// What was wrong with each repaired sample (`00003: 00003_img2.png missing`).
+    pub repairs: Vec<String>,
+    /// Temporary files of dead writers removed at the start.
+    pub stale_temporaries_removed: usize,
+    /// Complete samples of the whole dataset after the run.
     pub complete: usize,
     pub total: usize,
     pub manifest_written: bool,
+}
+
+/// The seed of sample `index` under the master seed `master`: (config, seed, index) alone fix
+/// a sample's bytes.
+pub fn sample_seed(master: u64, index: usize) -> u64 {
+    rng::derive(master, &[index as u64])
+}
+
+/// What became of one sample.
+enum Outcome {
+    Kept,
+    Made,
+    Repaired(SampleProblem),
 }
 
 /// A sample's images and optional flow before they are written.
@@ -117,7 +139,7 @@ impl Generator {
 
     /// The seed of sample `index`.
     pub fn sample_seed(&self, index: usize) -> u64 {
-        rng::derive(self.config.seed, &[index as u64])
+        sample_seed(self.config.seed, index)
     }
 
     fn render(&self, index: usize, seed: u64) -> Result<Rendered> {
@@ -166,13 +188,16 @@ impl Generator {
         }
     }
 
-    /// Generates (or keeps, if already complete) sample `index` in `dir`.
-    fn sample(&self, dir: &Path, index: usize) -> Result<(SampleMeta, bool)> {
+    /// Keeps sample `index` of `dir` if it is complete (every file of its sidecar present with
+    /// the recorded size and hash), and (re)makes it otherwise.
+    fn sample(&self, dir: &Path, index: usize) -> Result<Outcome> {
         let meta_path = dir.join(SampleMeta::file_name(index));
-        if let Some(meta) = SampleMeta::read_complete(&meta_path, dir) {
-            return Ok((meta, false));
-        }
         let seed = self.sample_seed(index);
+        let outcome = match check_sample(dir, index, seed, Depth::Hashes) {
+            Ok(_) => return Ok(Outcome::Kept),
+            Err(p) if p.is_absent() => Outcome::Made,
+            Err(p) => Outcome::Repaired(p),
+        };
         let r = self.render(index, seed)?;
         let depth = if self.config.camera.bit_depth == 16 {
             BitDepth::Sixteen
@@ -185,18 +210,18 @@ impl Generator {
             let img = self.camera.apply(clean, rng::derive(seed, &[purpose]))?;
             let name = format!("{index:05}_img{}.png", k + 1);
             io::write_image(&dir.join(&name), &img, depth)?;
-            files.push(name);
+            files.push(record_file(dir, &name)?);
             if self.config.save_clean {
                 let name = format!("{index:05}_clean{}.png", k + 1);
                 io::write_image(&dir.join(&name), clean, BitDepth::Sixteen)?;
-                files.push(name);
+                files.push(record_file(dir, &name)?);
             }
         }
         let flow_stats = match &r.flow {
             Some(flow) => {
                 let name = format!("{index:05}_flow.flo");
                 io::write_flo(&dir.join(&name), flow)?;
-                files.push(name);
+                files.push(record_file(dir, &name)?);
                 Some(FlowStats::of(flow))
             }
             None => None,
@@ -214,15 +239,21 @@ impl Generator {
             layers: r.layers,
         };
         meta.write(&meta_path)?;
-        Ok((meta, true))
+        Ok(outcome)
     }
 
-    /// Runs shard `shard` into `dir`: keeps complete samples, (re)makes the others, and writes
-    /// `manifest.json` once every sample of the whole dataset is complete.
+    /// Runs shard `shard` into `dir`: claims the folder for this config (or joins it, if it is
+    /// this config's), keeps complete samples, makes missing ones, repairs broken ones, and
+    /// writes `manifest.json` once every sample of the whole dataset is complete.
+    ///
+    /// Several runs of one config may work on one folder at once (shards, or reruns): they
+    /// write identical bytes, each file by an atomic rename, and remove only the temporaries
+    /// of writers that are gone. When the last shards finish together, each may write the
+    /// manifest; its bytes are the same whoever writes it.
     pub fn run(&self, dir: &Path, shard: Shard, progress: bool) -> Result<RunSummary> {
-        fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        self.claim(dir)?;
-        remove_stale_temporaries(dir)?;
+        folder::claim(dir, &self.config)?;
+        let stale_temporaries_removed =
+            io::atomic::remove_stale_temporaries(dir, io::atomic::STALE_AFTER)?;
         let range = shard.range(self.total);
         let bar = if progress {
             let bar = ProgressBar::new(range.len() as u64);
@@ -234,21 +265,31 @@ impl Generator {
         } else {
             ProgressBar::hidden()
         };
-        let generated = AtomicUsize::new(0);
-        range
+        let done: Vec<Outcome> = range
             .clone()
             .into_par_iter()
-            .try_for_each(|i| -> Result<()> {
-                let (_, made) = self.sample(dir, i)?;
-                if made {
-                    generated.fetch_add(1, Ordering::Relaxed);
-                }
+            .map(|i| {
+                let r = self.sample(dir, i);
                 bar.inc(1);
-                Ok(())
-            })?;
+                r
+            })
+            .collect::<Result<_>>()?;
         bar.finish_and_clear();
+        let (mut made, mut kept, mut repairs) = (0, 0, Vec::new());
+        for outcome in done {
+            match outcome {
+                Outcome::Kept => kept += 1,
+                Outcome::Made => made += 1,
+                Outcome::Repaired(p) => repairs.push(p.to_string()),
+            }
+        }
+        // The manifest lists every sidecar as parsed from its file, whichever run wrote it, so
+        // that its bytes do not depend on the shard split. This run's samples were just checked
+        // or written; all are taken as complete when their files have the recorded sizes
+        // (`--verify` reads every byte).
         let metas: Vec<Option<SampleMeta>> = (0..self.total)
-            .map(|i| SampleMeta::read_complete(&dir.join(SampleMeta::file_name(i)), dir))
+            .into_par_iter()
+            .map(|i| check_sample(dir, i, self.sample_seed(i), Depth::Sizes).ok())
             .collect();
         let complete = metas.iter().filter(|m| m.is_some()).count();
         let manifest_written = complete == self.total;
@@ -263,52 +304,17 @@ impl Generator {
             };
             manifest.write(&dir.join("manifest.json"))?;
         }
-        let generated = generated.into_inner();
         Ok(RunSummary {
-            generated,
-            kept: range.len() - generated,
+            made,
+            repaired: repairs.len(),
+            kept,
+            repairs,
+            stale_temporaries_removed,
             complete,
             total: self.total,
             manifest_written,
         })
     }
-
-    /// Records this run's config in `dir/config.json`, refusing a folder made with another.
-    fn claim(&self, dir: &Path) -> Result<()> {
-        let path = dir.join("config.json");
-        let text = serde_json::to_string_pretty(&self.config)
-            .map_err(|e| Error::invalid("config", e.to_string()))?;
-        if path.exists() {
-            let old = fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-            let same = serde_json::from_str::<GeneratorConfig>(&old)
-                .map(|c| c == self.config)
-                .unwrap_or(false);
-            if !same {
-                return Err(Error::invalid(
-                    "output folder",
-                    format!(
-                        "{} holds a dataset made with another config (see its config.json); \
-                         choose another --out or remove it",
-                        dir.display()
-                    ),
-                ));
-            }
-            return Ok(());
-        }
-        io::write_bytes_atomic(&path, text.as_bytes())
-    }
-}
-
-/// Deletes temporary files left by an interrupted run.
-fn remove_stale_temporaries(dir: &Path) -> Result<()> {
-    for entry in fs::read_dir(dir).map_err(|e| Error::io(dir, e))?.flatten() {
-        let name = entry.file_name();
-        if io::atomic::is_temp_name(&name.to_string_lossy()) {
-            let p: PathBuf = entry.path();
-            fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

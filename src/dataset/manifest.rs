@@ -39,6 +39,17 @@ impl FlowStats {
     }
 }
 
+/// One file of a sample: its name (relative to the dataset folder), size and SHA-256, so that
+/// a rerun or `--verify` can tell a complete file from a truncated or altered one.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileRecord {
+    pub name: String,
+    pub bytes: u64,
+    /// Lower-case hex.
+    pub sha256: String,
+}
+
 /// Everything about one sample.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SampleMeta {
@@ -47,8 +58,9 @@ pub struct SampleMeta {
     pub width: usize,
     pub height: usize,
     pub channels: usize,
-    /// The sample's files, relative to the dataset folder.
-    pub files: Vec<String>,
+    /// The sample's files with their sizes and hashes (an older format listed bare names; such
+    /// a sidecar no longer parses, and its sample is redone).
+    pub files: Vec<FileRecord>,
     /// Present when the sample has ground-truth flow.
     pub flow: Option<FlowStats>,
     /// The source pair's name, for samples made from an existing dataset.
@@ -65,21 +77,15 @@ impl SampleMeta {
         format!("{index:05}_meta.json")
     }
 
-    /// Writes the sidecar atomically; it is written last, so its presence marks completion.
+    /// Writes the sidecar atomically; it is written last, so its presence marks completion
+    /// (and its hashes say whether the files are still those it was written for).
     pub fn write(&self, path: &Path) -> Result<()> {
-        let text = serde_json::to_string(self)
-            .map_err(|e| Error::invalid("sample metadata", e.to_string()))?;
-        io::write_bytes_atomic(path, text.as_bytes())
+        io::write_bytes_atomic(path, self.to_json()?.as_bytes())
     }
 
-    /// The sidecar at `path` if it parses and every file it lists exists in `dir`.
-    pub fn read_complete(path: &Path, dir: &Path) -> Option<SampleMeta> {
-        let text = std::fs::read_to_string(path).ok()?;
-        let meta: SampleMeta = serde_json::from_str(&text).ok()?;
-        meta.files
-            .iter()
-            .all(|f| dir.join(f).is_file())
-            .then_some(meta)
+    /// The sidecar's exact text.
+    pub fn to_json(&self) -> Result<String> {
+        serde_json::to_string(self).map_err(|e| Error::invalid("sample metadata", e.to_string()))
     }
 }
 
