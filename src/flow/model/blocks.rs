@@ -1,5 +1,5 @@
-//! Building blocks shared by the encoders: convolutions with explicit padding, a normalisation
-//! switch and the residual block.
+//! Building blocks shared by the encoders (Note S10): convolutions with explicit padding, a
+//! normalisation switch and the residual block.
 
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{GroupNorm, GroupNormConfig, InstanceNorm, InstanceNormConfig, PaddingConfig2d};
@@ -7,12 +7,10 @@ use burn::prelude::*;
 use burn::tensor::activation::relu;
 
 use super::config::NormKind;
-use super::host_conv::conv_forward;
-use super::host_norm::{group_norm, on_host};
-use super::train_norm::group_norm_train;
+use crate::flow::ops::{self, Act, NormLayer};
 
 /// A k×k convolution with `stride` and `dilation`, padded so that stride 1 keeps the size.
-/// Padding is explicit: burn's `Same` ignores dilation.
+/// Padding is explicit: Burn's `Same` ignores dilation.
 pub fn conv(
     cin: usize,
     cout: usize,
@@ -27,21 +25,6 @@ pub fn conv(
         .with_dilation([dilation, dilation])
         .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
         .init(device)
-}
-
-/// The bias of `c`, or zeros when it has none: for convolutions whose kernels are stacked into
-/// one call of `burn::tensor::module::conv2d`.
-///
-/// # Shapes
-/// → `[Cout]`
-pub fn bias_or_zeros(c: &Conv2d) -> Tensor<1> {
-    match &c.bias {
-        Some(b) => b.val(),
-        None => {
-            let w = c.weight.val();
-            Tensor::zeros([w.dims()[0]], &w.device())
-        }
-    }
 }
 
 /// A normalisation layer chosen by [`NormKind`].
@@ -69,40 +52,13 @@ impl Norm {
         }
     }
 
-    /// Groups, ε, γ and β of the layer; `None` for no normalisation.
-    #[allow(clippy::type_complexity)]
-    fn params(&self) -> Option<(usize, f64, Option<Tensor<1>>, Option<Tensor<1>>)> {
-        let val = |p: &Option<burn::module::Param<Tensor<1>>>| p.as_ref().map(|p| p.val());
-        match (&self.instance, &self.group) {
-            (Some(n), _) => Some((n.num_channels, n.epsilon, val(&n.gamma), val(&n.beta))),
-            (None, Some(n)) => Some((n.num_groups, n.epsilon, val(&n.gamma), val(&n.beta))),
-            (None, None) => None,
-        }
-    }
-
     /// # Shapes
     /// `[B, C, H, W]` → `[B, C, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        // The CPU backend normalises on host memory (training through a differentiable
-        // operation); anything it declines falls through to burn's layer below.
-        if let Some((groups, eps, gamma, beta)) = self.params() {
-            let y = match (&gamma, &beta) {
-                (Some(g), Some(b)) if x.is_autodiff() => group_norm_train(&x, groups, eps, g, b),
-                _ if on_host(&x) && x.dims()[1].is_multiple_of(groups.max(1)) => {
-                    group_norm(x.clone(), groups, eps, gamma, beta)
-                }
-                _ => None,
-            };
-            if let Some(y) = y {
-                return y;
-            }
-        }
-        if let Some(n) = &self.instance {
-            n.forward(x)
-        } else if let Some(n) = &self.group {
-            n.forward(x)
-        } else {
-            x
+        match (&self.instance, &self.group) {
+            (Some(n), _) => ops::norm(NormLayer::Instance(n), x),
+            (None, Some(n)) => ops::norm(NormLayer::Group(n), x),
+            (None, None) => x,
         }
     }
 }
@@ -131,13 +87,17 @@ impl ResidualBlock {
         }
     }
 
+    /// `relu(skip(x) + relu(norm2(conv2(relu(norm1(conv1(x)))))))`
+    ///
     /// # Shapes
     /// `[B, Cin, H, W]` → `[B, Cout, H/stride, W/stride]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu(self.norm1.forward(conv_forward(&self.conv1, x.clone())));
-        let y = relu(self.norm2.forward(conv_forward(&self.conv2, y)));
+        let layer =
+            |c: &Conv2d, n: &Norm, x: Tensor<4>| n.forward(ops::conv_layer(c, x, Act::Identity));
+        let y = relu(layer(&self.conv1, &self.norm1, x.clone()));
+        let y = relu(layer(&self.conv2, &self.norm2, y));
         let skip = match (&self.skip, &self.skip_norm) {
-            (Some(c), Some(n)) => n.forward(conv_forward(c, x)),
+            (Some(c), Some(n)) => layer(c, n, x),
             _ => x,
         };
         relu(skip + y)

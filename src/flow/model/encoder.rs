@@ -10,7 +10,7 @@ use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
 
 use super::blocks::{Norm, ResidualBlock, conv};
 use super::config::NormKind;
-use super::host_conv::{Act, conv_act, conv_forward};
+use crate::flow::ops::{Act, conv_layer};
 
 /// Bilinear resize to `[h, w]` with PyTorch's `align_corners = false` (burn's default is true).
 pub fn resize(x: Tensor<4>, h: usize, w: usize) -> Tensor<4> {
@@ -46,10 +46,11 @@ impl PyramidPooling {
         for m in 1..=3 {
             branches.push(resize(adaptive_avg_pool2d(x.clone(), [m, m]), h, w));
         }
-        relu(
-            self.norm
-                .forward(conv_forward(&self.fuse, Tensor::cat(branches, 1))),
-        ) // [B, 4C, H, W] → [B, C, H, W]
+        relu(self.norm.forward(conv_layer(
+            &self.fuse,
+            Tensor::cat(branches, 1),
+            Act::Identity,
+        ))) // [B, 4C, H, W] → [B, C, H, W]
     }
 }
 
@@ -89,14 +90,17 @@ impl Daspp {
     /// `[B, C, H, W]` → `[B, Cout, H, W]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let [b, c, h, w] = x.dims();
-        let mut branches = vec![conv_act(&self.point, x.clone(), Act::Relu)];
+        let mut branches = vec![conv_layer(&self.point, x.clone(), Act::Relu)];
         for a in &self.atrous {
-            branches.push(conv_act(a, x.clone(), Act::Relu));
+            branches.push(conv_layer(a, x.clone(), Act::Relu));
         }
-        let g = conv_act(&self.global, x.mean_dim(2).mean_dim(3), Act::Relu); // [B, C, 1, 1]
+        let g = conv_layer(&self.global, x.mean_dim(2).mean_dim(3), Act::Relu); // [B, C, 1, 1]
         branches.push(g.expand([b, c, h, w]));
-        self.norm
-            .forward(conv_forward(&self.fuse, Tensor::cat(branches, 1)))
+        self.norm.forward(conv_layer(
+            &self.fuse,
+            Tensor::cat(branches, 1),
+            Act::Identity,
+        ))
     }
 }
 
@@ -144,7 +148,10 @@ impl Dsmsce {
     /// # Shapes
     /// `[B, 3, H, W]` (H, W multiples of 8) → `[B, out, H/8, W/8]`
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let mut x = relu(self.stem_norm.forward(conv_forward(&self.stem, x))); // [B, d1, H/2, W/2]
+        let mut x = relu(
+            self.stem_norm
+                .forward(conv_layer(&self.stem, x, Act::Identity)),
+        ); // [B, d1, H/2, W/2]
         for b in self.stage1.iter().chain(&self.stage2).chain(&self.stage3) {
             x = b.forward(x); // → [B, d3, H/8, W/8]
         }

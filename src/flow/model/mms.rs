@@ -9,6 +9,7 @@ use super::corr::CorrPyramid;
 use super::encoder::Dsmsce;
 use super::update::UpdateBlock;
 use super::upsample::convex_upsample;
+use crate::flow::ops;
 
 /// The network. Inputs are images in [0, 1] whose sides are multiples of 8 (see
 /// [`super::padder::InputPadder`] for other sizes).
@@ -66,8 +67,7 @@ impl Mms {
         // [0, 1] → [−1, 1], as RAFT normalises its inputs.
         let norm = |x: Tensor<4>| x.mul_scalar(2.0).sub_scalar(1.0);
         // Both frames through the shared feature encoder in one batch; the context encoder
-        // beside it. At inference the two run concurrently, so small layers that cannot use
-        // every core leave the rest to the other encoder.
+        // beside it (concurrently at inference).
         let features = || {
             self.feature_encoder.forward(Tensor::cat(
                 vec![norm(image1.clone()), norm(image2.clone())],
@@ -75,11 +75,7 @@ impl Mms {
             ))
         };
         let context = || self.context_encoder.forward(norm(image1.clone())); // [B, Ch + Cc, H/8, W/8]
-        let (features, context) = if image1.is_autodiff() {
-            (features(), context())
-        } else {
-            rayon::join(features, context)
-        };
+        let (features, context) = ops::both(&image1, features, context);
         let f1 = features.clone().narrow(0, 0, b); // [B, C, H/8, W/8]
         let f2 = features.narrow(0, b, b);
         let corr = CorrPyramid::new(f1, f2, self.corr_levels, self.corr_radius);

@@ -1,43 +1,18 @@
 //! Convex upsampling (Note S9): every full-resolution flow vector is a softmax-weighted convex
-//! combination of the 3×3 coarse neighbours of its 1/8-resolution cell, with an 8×8×9 mask.
+//! combination of the 3×3 coarse neighbours of its 1/8-resolution cell (their flow × 8, in
+//! full-resolution pixels), with the 8×8×9 weights predicted by the mask head:
+//! `F↑(8y + i, 8x + j) = Σ_k softmax_k(m[k, i, j](y, x)) · 8 F(y + ky − 1, x + kx − 1)`.
+//! The operation is [`ops::convex_upsample`].
 
 use burn::prelude::*;
-use burn::tensor::activation::softmax;
-use burn::tensor::module::unfold4d;
-use burn::tensor::ops::UnfoldOptions;
 
-use super::upsample_host::convex_upsample_host;
+use crate::flow::ops;
 
 /// # Shapes
 /// `flow` `[B, 2, H, W]` (1/8-resolution pixels), `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
 /// (full-resolution pixels). The softmax subtracts the maximum, so huge logits stay finite.
-/// On the CPU backend this runs on host memory ([`super::upsample_host`]), elsewhere as
-/// [`convex_upsample_tensor`].
 pub fn convex_upsample(flow: Tensor<4>, mask: Tensor<4>) -> Tensor<4> {
-    match convex_upsample_host(&flow, &mask) {
-        Some(up) => up,
-        None => convex_upsample_tensor(flow, mask),
-    }
-}
-
-/// The same as tensor operations, for any device.
-///
-/// # Shapes
-/// `flow` `[B, 2, H, W]`, `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
-pub fn convex_upsample_tensor(flow: Tensor<4>, mask: Tensor<4>) -> Tensor<4> {
-    let [b, _, h, w] = flow.dims();
-    let mask = softmax(mask.reshape([b, 1, 9, 64, h * w]), 2);
-    let neighbours = unfold4d(
-        flow.mul_scalar(8.0),
-        [3, 3],
-        UnfoldOptions::new([1, 1], [1, 1], [1, 1]),
-    )
-    .reshape([b, 2, 9, 1, h * w]); // [B, 2·9, H·W] → [B, 2, 9, 1, H·W]
-    (mask * neighbours)
-        .sum_dim(2) // [B, 2, 1, 64, H·W]
-        .reshape([b, 2, 8, 8, h, w])
-        .permute([0, 1, 4, 2, 5, 3])
-        .reshape([b, 2, 8 * h, 8 * w])
+    ops::convex_upsample(flow, mask)
 }
 
 #[cfg(test)]

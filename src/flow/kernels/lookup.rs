@@ -1,36 +1,29 @@
-//! The correlation lookup (Note S9) on host memory: at inference directly, in training as one
-//! autodiff operation per pyramid level on the CPU backend. The forward pass reads the (2r+1)² bilinear window around every pixel's
-//! scaled position directly, and the backward pass adds the window's gradient back onto the
+//! The correlation lookup of Note S9 on host values: around every pixel's position x + F(x),
+//! scaled to level l by 2^−l, the (2r+1)² window of the level read by bilinear interpolation,
+//! zero outside the level. The forward pass gathers the (2r+2)² integer patch once and applies
+//! the bilinear weights separably; the backward pass adds the window's gradient back onto the
 //! four corners of every tap, each pixel into its own correlation map (so pixels run in
 //! parallel without conflicts). The positions carry no gradient, as in RAFT.
 
-use burn::backend::Flex;
-use burn::backend::autodiff::checkpoint::base::Checkpointer;
-use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
-use burn::backend::autodiff::grads::Gradients;
-use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::prelude::*;
 use rayon::prelude::*;
-
-use super::flex_bridge::{Ad, AdT, HostView, from_host};
 
 /// Sizes of one lookup.
 #[derive(Clone, Copy, Debug)]
-struct Window {
+pub struct Window {
     /// Images, rows and columns of the 1/8-resolution grid.
-    b: usize,
-    h: usize,
-    w: usize,
+    pub b: usize,
+    pub h: usize,
+    pub w: usize,
     /// Level size.
-    hl: usize,
-    wl: usize,
-    r: usize,
+    pub hl: usize,
+    pub wl: usize,
+    pub r: usize,
     /// 2^−level: pixel positions to level positions.
-    scale: f32,
+    pub scale: f32,
 }
 
 impl Window {
-    fn k(&self) -> usize {
+    pub fn k(&self) -> usize {
         2 * self.r + 1
     }
 
@@ -97,7 +90,7 @@ impl Window {
 
     /// # Shapes
     /// `level` `[B·H·W, hl, wl]`, `coords` `[B, 2, H, W]` → `[B, (2r+1)², H, W]`
-    fn forward(&self, level: &[f32], coords: &[f32]) -> Vec<f32> {
+    pub fn forward(&self, level: &[f32], coords: &[f32]) -> Vec<f32> {
         let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
         let k1 = k + 1;
         let mut windows = vec![0f32; self.b * hw * k * k];
@@ -143,7 +136,7 @@ impl Window {
     ///
     /// # Shapes
     /// → `[B·H·W, hl, wl]`
-    fn backward(&self, coords: &[f32], g: &[f32]) -> Vec<f32> {
+    pub fn backward(&self, coords: &[f32], g: &[f32]) -> Vec<f32> {
         let (k, hw, m) = (self.k(), self.h * self.w, self.hl * self.wl);
         let k1 = k + 1;
         let mut dlevel = vec![0f32; self.b * hw * m];
@@ -180,7 +173,7 @@ impl Window {
 ///
 /// # Shapes
 /// `levels[l]` `[B·H·W, h_l, w_l]`, `coords` `[B, 2, H, W]` → `[B, L·(2r+1)², H, W]`
-pub fn lookup_levels_host(
+pub fn lookup_levels(
     levels: &[&[f32]],
     sizes: &[(usize, usize)],
     coords: &[f32],
@@ -210,77 +203,94 @@ pub fn lookup_levels_host(
     out
 }
 
-/// The window lookup of one level under autodiff on the CPU backend; `None` elsewhere (the
-/// caller then uses the tensor form).
-///
-/// # Shapes
-/// `level` `[B·H·W, hl, wl]`, `coords` `[B, 2, H, W]` (no gradient) → `[B, (2r+1)², H, W]`
-pub fn lookup_level_train(
-    level: &Tensor<3>,
-    coords: &Tensor<4>,
-    radius: usize,
-    l: usize,
-) -> Option<Tensor<4>> {
-    let [b, two, h, w] = coords.dims();
-    let [n, hl, wl] = level.dims();
-    if two != 2 || n != b * h * w || level.dtype() != burn::tensor::DType::F32 {
-        return None;
-    }
-    let lp = level.clone().try_into_primitive::<Ad>().ok()?;
-    let plain = if coords.is_autodiff() {
-        coords.clone().inner()
-    } else {
-        coords.clone()
-    };
-    let c = plain.into_data().try_into_vec::<f32>().ok()?;
-    let win = Window {
-        b,
-        h,
-        w,
-        hl,
-        wl,
-        r: radius,
-        scale: 1.0 / (1u64 << l) as f32,
-    };
-    Some(Tensor::from_primitive::<Ad>(lookup_op(lp, c, win)))
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flow::kernels::testing::{Tol, assert_close, cases, values};
+    use rand::RngExt;
 
-fn lookup_op(level: AdT, coords: Vec<f32>, win: Window) -> AdT {
-    #[derive(Debug)]
-    struct HostLookup;
-
-    impl Backward<Flex, 1> for HostLookup {
-        type State = (Vec<f32>, Window);
-
-        fn backward(self, ops: Ops<Self::State, 1>, grads: &mut Gradients, _: &mut Checkpointer) {
-            let [node] = ops.parents;
-            let gv = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
-            let (coords, win) = ops.state;
-            if let Some(node) = node {
-                let d = win.backward(&coords, gv.values());
-                let shape = [win.b * win.h * win.w, win.hl, win.wl];
-                grads.register::<Flex>(node.id, from_host(d, shape));
+    /// The window value at tap (i, j) by the definition: bilinear interpolation of the level at
+    /// (x·s − r + j, y·s − r + i), zero outside.
+    fn bilinear(level: &[f32], hl: usize, wl: usize, x: f32, y: f32) -> f32 {
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |yy: f32, xx: f32| {
+            if yy < 0.0 || xx < 0.0 || yy >= hl as f32 || xx >= wl as f32 {
+                0.0
+            } else {
+                level[yy as usize * wl + xx as usize]
             }
-        }
+        };
+        (1.0 - fy) * ((1.0 - fx) * at(y0, x0) + fx * at(y0, x0 + 1.0))
+            + fy * ((1.0 - fx) * at(y0 + 1.0, x0) + fx * at(y0 + 1.0, x0 + 1.0))
     }
 
-    let run = |level: &AdT| {
-        let v = HostView::<3>::new(level.primitive().clone());
-        let k = win.k();
-        from_host(
-            win.forward(v.values(), &coords),
-            [win.b, k * k, win.h, win.w],
-        )
-    };
-    match HostLookup
-        .prepare::<NoCheckpointing>([level.node()])
-        .compute_bound()
-        .stateful()
-    {
-        OpsKind::Tracked(prep) => {
-            let y = run(&level);
-            prep.finish((coords, win), y)
+    /// Property: on random sizes, radii, levels and positions inside, across and far outside
+    /// the level (seeded), the forward pass is bilinear interpolation and the backward pass its
+    /// adjoint, ⟨lookup(level), g⟩ = ⟨level, ∂L/∂level⟩.
+    #[test]
+    fn windows_are_bilinear_reads_and_the_backward_pass_their_adjoint() {
+        for case in 0..30 {
+            let mut r = cases("corr lookup", case);
+            let (b, h, w) = (
+                r.random_range(1..=2),
+                r.random_range(1..=4),
+                r.random_range(1..=4),
+            );
+            let (hl, wl, radius) = (
+                r.random_range(1..=6),
+                r.random_range(1..=6),
+                r.random_range(1..=3),
+            );
+            let scale = 1.0 / (1u32 << r.random_range(0..3)) as f32;
+            let win = Window {
+                b,
+                h,
+                w,
+                hl,
+                wl,
+                r: radius,
+                scale,
+            };
+            let n = b * h * w;
+            let level = values(&mut r, n * hl * wl, 1.0);
+            let coords: Vec<f32> = (0..b * 2 * h * w)
+                .map(|_| r.random_range(-12.0f32..20.0))
+                .collect();
+            let k = win.k();
+            let got = win.forward(&level, &coords);
+            let hw = h * w;
+            let mut want = vec![0f32; b * k * k * hw];
+            for bi in 0..b {
+                for p in 0..hw {
+                    let (x, y) = (
+                        coords[2 * bi * hw + p] * scale,
+                        coords[(2 * bi + 1) * hw + p] * scale,
+                    );
+                    let map = &level[(bi * hw + p) * hl * wl..][..hl * wl];
+                    for i in 0..k {
+                        for j in 0..k {
+                            let (tx, ty) =
+                                (x - radius as f32 + j as f32, y - radius as f32 + i as f32);
+                            want[(bi * k * k + i * k + j) * hw + p] = bilinear(map, hl, wl, tx, ty);
+                        }
+                    }
+                }
+            }
+            let what = format!("case {case}: {win:?}");
+            assert_close(&got, &want, Tol::Abs(1e-5), &what);
+            let g = values(&mut r, got.len(), 1.0);
+            let dlevel = win.backward(&coords, &g);
+            let dot =
+                |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(u, v)| (u * v) as f64).sum::<f64>();
+            let (lhs, rhs) = (dot(&got, &g), dot(&level, &dlevel));
+            let scale = (lhs.abs() + 1.0) as f32;
+            assert_close(
+                &[rhs as f32 / scale],
+                &[lhs as f32 / scale],
+                Tol::Abs(1e-5),
+                &format!("adjoint, {what}"),
+            );
         }
-        OpsKind::UnTracked(prep) => prep.finish(run(&level)),
     }
 }

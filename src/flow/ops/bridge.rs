@@ -1,7 +1,6 @@
-//! The bridge between burn's tensors and the host kernels' memory for the autodiff operations
-//! of training on the CPU backend (`train_conv`, `train_norm`, `corr_lookup_op`,
-//! `upsample_host`): the backend types and the conversions between a backend primitive, a plain
-//! tensor and a host vector.
+//! The bridge between Burn's tensors and the host kernels' memory: the CPU backend types
+//! (plain and autodiff) and the conversions between a backend primitive, a plain tensor and a
+//! host vector, read in place where the tensor is contiguous.
 
 use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
 use burn::backend::{Autodiff, BackendTypes, Flex};

@@ -1,54 +1,11 @@
-//! Instance and group normalisation for inference on the CPU (the encoders of Note S10): the
-//! numbers of `burn::nn::{InstanceNorm, GroupNorm}`, in three passes over each group (mean,
-//! variance about the mean, normalise with the affine folded in) instead of burn's chain of
-//! whole-tensor operations, groups in parallel.
-//!
-//! The non-autodiff CPU device takes [`group_norm`]; training reaches [`normalise`] and
-//! [`normalise_backward`] through the differentiable operation of [`super::train_norm`].
+//! Instance and group normalisation (the encoders of Note S10) on host values: per image and
+//! group of channels, `x̂ = (x − μ)·σ⁻¹` with σ² the variance about the mean plus ε, then
+//! `γ_c·x̂ + β_c` per channel — three passes over each group (mean, variance about the mean,
+//! normalise with the affine folded in) instead of Burn's chain of whole-tensor operations,
+//! groups in parallel; and its gradients in two passes. Instance normalisation is
+//! `groups = C`. Statistics accumulate in f64.
 
-use burn::prelude::*;
 use rayon::prelude::*;
-
-/// Whether `x` can take the host path.
-pub fn on_host(x: &Tensor<4>) -> bool {
-    !x.is_autodiff() && x.device() == Device::flex()
-}
-
-/// Group normalisation of `x` over `groups` channel groups: per image and group,
-/// `(x − mean) / √(var + ε)`, then `γ_c·x + β_c` per channel when the affine parameters are
-/// given. Instance normalisation is `groups = C`. `None` when the data is not f32 (the caller
-/// then uses burn's layer).
-///
-/// # Shapes
-/// `[B, C, H, W]` → `[B, C, H, W]`; `gamma`, `beta`: `[C]`
-pub fn group_norm(
-    x: Tensor<4>,
-    groups: usize,
-    epsilon: f64,
-    gamma: Option<Tensor<1>>,
-    beta: Option<Tensor<1>>,
-) -> Option<Tensor<4>> {
-    let [b, c, h, w] = x.dims();
-    if groups == 0 || c % groups != 0 {
-        return None;
-    }
-    let device = x.device();
-    let data = x.into_data();
-    let xv = data.as_slice::<f32>().ok()?;
-    let affine = match (gamma, beta) {
-        (Some(g), Some(bt)) => Some((
-            g.into_data().try_into_vec::<f32>().ok()?,
-            bt.into_data().try_into_vec::<f32>().ok()?,
-        )),
-        _ => None,
-    };
-    let affine = affine.as_ref().map(|(g, bt)| (g.as_slice(), bt.as_slice()));
-    let out = normalise(xv, [b, c, h * w], groups, epsilon, affine);
-    Some(Tensor::from_data(
-        TensorData::new(out, [b, c, h, w]),
-        &device,
-    ))
-}
 
 /// Mean and 1/√(var + ε) of one group, accumulated in f64.
 fn stats(src: &[f32], epsilon: f64) -> (f32, f32) {
@@ -170,40 +127,72 @@ pub fn normalise_backward(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use burn::nn::{GroupNormConfig, InstanceNormConfig};
-    use burn::tensor::Distribution;
+    use crate::flow::kernels::testing::{Tol, assert_close, cases, values};
 
-    /// Instance and group normalisation match burn's layers, with trained-looking affine
-    /// parameters, on an offset, badly scaled input.
+    /// A constant map normalises to the shift, not to NaN; a normalised group has mean 0 and
+    /// variance 1 (up to ε).
     #[test]
-    fn host_norms_match_burn() {
-        let dev = Device::flex();
-        let x = Tensor::<4>::random([2, 16, 7, 9], Distribution::Normal(3.0, 5.0), &dev);
-        let mut inst = InstanceNormConfig::new(16).init(&dev);
-        let mut group = GroupNormConfig::new(8, 16).init(&dev);
-        let g = Tensor::<1>::random([16], Distribution::Normal(1.0, 0.5), &dev);
-        let bt = Tensor::<1>::random([16], Distribution::Normal(0.0, 0.5), &dev);
-        inst.gamma = Some(burn::module::Param::from_tensor(g.clone()));
-        inst.beta = Some(burn::module::Param::from_tensor(bt.clone()));
-        group.gamma = Some(burn::module::Param::from_tensor(g.clone()));
-        group.beta = Some(burn::module::Param::from_tensor(bt.clone()));
-        let got = group_norm(
-            x.clone(),
-            16,
-            inst.epsilon,
-            Some(g.clone()),
-            Some(bt.clone()),
-        )
-        .expect("f32");
-        let diff: f32 = (got - inst.forward(x.clone())).abs().max().into_scalar();
-        assert!(diff < 1e-4, "instance: max difference {diff}");
-        let got = group_norm(x.clone(), 8, group.epsilon, Some(g), Some(bt)).expect("f32");
-        let diff: f32 = (got - group.forward(x.clone())).abs().max().into_scalar();
-        assert!(diff < 1e-4, "group: max difference {diff}");
-        // A constant map normalises to the shift, not to NaN.
-        let flat = Tensor::<4>::ones([1, 16, 4, 4], &dev).mul_scalar(7.0);
-        let y = group_norm(flat, 16, 1e-5, None, None).expect("f32");
-        let m: f32 = y.abs().max().into_scalar();
-        assert!(m.is_finite() && m < 1e-3, "constant map gave {m}");
+    fn normalised_groups_have_zero_mean_and_unit_variance() {
+        let flat = vec![7f32; 16 * 16];
+        let y = normalise(&flat, [1, 16, 16], 16, 1e-5, None);
+        assert!(y.iter().all(|v| v.is_finite() && v.abs() < 1e-3));
+        let mut r = cases("norm stats", 0);
+        let x: Vec<f32> = values(&mut r, 2 * 6 * 20, 5.0)
+            .iter()
+            .map(|v| v + 3.0)
+            .collect();
+        let y = normalise(&x, [2, 6, 20], 3, 1e-5, None);
+        for group in y.chunks_exact(40) {
+            let mean = group.iter().sum::<f32>() / 40.0;
+            let var = group.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() / 40.0;
+            assert_close(
+                &[mean, var],
+                &[0.0, 1.0],
+                Tol::Abs(1e-4),
+                "group statistics",
+            );
+        }
+    }
+
+    /// The backward pass equals central differences of ⟨normalise(x), g⟩.
+    #[test]
+    fn gradients_match_finite_differences() {
+        let mut r = cases("norm gradients", 0);
+        let shape = [2, 4, 6];
+        let n: usize = shape.iter().product();
+        let x = values(&mut r, n, 1.0);
+        let g = values(&mut r, n, 1.0);
+        let gamma = values(&mut r, 4, 1.0);
+        let beta = values(&mut r, 4, 1.0);
+        let loss = |x: &[f32], gamma: &[f32], beta: &[f32]| -> f64 {
+            let y = normalise(x, shape, 2, 1e-5, Some((gamma, beta)));
+            y.iter().zip(&g).map(|(a, b)| (a * b) as f64).sum()
+        };
+        let (dx, dgamma, dbeta) = normalise_backward(&x, &g, shape, 2, 1e-5, &gamma);
+        let h = 1e-2f32;
+        let numeric = |v: &[f32], f: &dyn Fn(&[f32]) -> f64| -> Vec<f32> {
+            (0..v.len())
+                .map(|i| {
+                    let (mut up, mut down) = (v.to_vec(), v.to_vec());
+                    up[i] += h;
+                    down[i] -= h;
+                    ((f(&up) - f(&down)) / (2.0 * h as f64)) as f32
+                })
+                .collect()
+        };
+        let tol = Tol::Scaled(2e-2);
+        assert_close(&dx, &numeric(&x, &|v| loss(v, &gamma, &beta)), tol, "∂L/∂x");
+        assert_close(
+            &dgamma,
+            &numeric(&gamma, &|v| loss(&x, v, &beta)),
+            tol,
+            "∂L/∂γ",
+        );
+        assert_close(
+            &dbeta,
+            &numeric(&beta, &|v| loss(&x, &gamma, v)),
+            tol,
+            "∂L/∂β",
+        );
     }
 }

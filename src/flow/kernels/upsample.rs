@@ -1,52 +1,17 @@
-//! Convex upsampling (Note S9) on host memory for the CPU backend, forward and backward, used at
-//! inference directly and in training as one autodiff operation: per cell and sub-pixel, a
-//! softmax over the 9 mask logits and the weighted sum of the 3×3 coarse neighbours (×8), written
-//! straight at full resolution — where the tensor form is a reshape, a softmax, an unfold, a
-//! product, a sum and a permutation, each with its own copy and gradient.
+//! Convex upsampling (Note S9) on host values, forward and backward: every full-resolution flow
+//! vector is a softmax-weighted convex combination of 8× the flow at the 3×3 coarse neighbours
+//! of its 1/8-resolution cell. Per cell and sub-pixel, a softmax over the 9 mask logits and the
+//! weighted sum, written straight at full resolution — where the tensor form is a reshape, a
+//! softmax, an unfold, a product, a sum and a permutation, each with its own copy and gradient.
+//! One task per band of coarse rows, compiled for AVX2/AVX-512 where the CPU has them.
 //!
 //! Mask channel `k·64 + s` holds neighbour k = 3·ky + kx (offset (ky − 1, kx − 1)) of sub-pixel
-//! s = 8·i + j, as [`super::upsample::convex_upsample`] reads it.
+//! s = 8·i + j.
 
-use burn::backend::Flex;
-use burn::backend::autodiff::NodeId;
-use burn::backend::autodiff::checkpoint::base::Checkpointer;
-use burn::backend::autodiff::checkpoint::strategy::NoCheckpointing;
-use burn::backend::autodiff::grads::Gradients;
-use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::prelude::*;
 use multiversion::multiversion;
 use rayon::prelude::*;
 
-use super::flex_bridge::{Ad, AdT, HostView, from_host};
 use super::vexp::exp;
-
-/// The convex upsampling on the CPU backend (with or without autodiff); `None` elsewhere or for
-/// other dtypes (the caller then uses the tensor form).
-///
-/// # Shapes
-/// `flow` `[B, 2, H, W]`, `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
-pub fn convex_upsample_host(flow: &Tensor<4>, mask: &Tensor<4>) -> Option<Tensor<4>> {
-    let f32s = flow.dtype() == burn::tensor::DType::F32 && mask.dtype() == burn::tensor::DType::F32;
-    let [b, c, h, w] = flow.dims();
-    if !f32s || c != 2 || mask.dims() != [b, 576, h, w] {
-        return None;
-    }
-    if flow.is_autodiff() || mask.is_autodiff() {
-        let fp = flow.clone().try_into_primitive::<Ad>().ok()?;
-        let mp = mask.clone().try_into_primitive::<Ad>().ok()?;
-        return Some(Tensor::from_primitive::<Ad>(upsample_op(fp, mp)));
-    }
-    if flow.device() != Device::flex() {
-        return None;
-    }
-    let fv = flow.clone().into_data().try_into_vec::<f32>().ok()?;
-    let mv = mask.clone().into_data().try_into_vec::<f32>().ok()?;
-    let out = forward(&fv, &mv, [b, h, w]);
-    Some(Tensor::from_data(
-        TensorData::new(out, [b, 2, 8 * h, 8 * w]),
-        &flow.device(),
-    ))
-}
 
 /// Cells per task (whole coarse rows, at least two tasks per image).
 const CELLS_PER_TASK: usize = 512;
@@ -122,7 +87,7 @@ fn neighbours(flow: &[f32], [h, w]: [usize; 2], y0: usize, y1: usize) -> Vec<f32
 
 /// # Shapes
 /// `flow` `[B, 2, H, W]`, `mask` `[B, 576, H, W]` → `[B, 2, 8H, 8W]`
-fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
+pub fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
     let (hw, wf) = (h * w, 8 * w);
     let mut out = vec![0f32; b * 2 * 64 * hw];
     let tasks = tasks(b, h, w);
@@ -145,7 +110,12 @@ fn forward(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
 ///
 /// # Shapes
 /// → (`[B, 2, H, W]`, `[B, 576, H, W]`)
-fn backward(flow: &[f32], mask: &[f32], g: &[f32], [b, h, w]: [usize; 3]) -> (Vec<f32>, Vec<f32>) {
+pub fn backward(
+    flow: &[f32],
+    mask: &[f32],
+    g: &[f32],
+    [b, h, w]: [usize; 3],
+) -> (Vec<f32>, Vec<f32>) {
     let hw = h * w;
     let tasks = tasks(b, h, w);
     // Per task: ∂L/∂mask [576, n] and coef [18, n], coef[d, k, c] = 8 Σ_s w_k(c, s) g_d(c, s),
@@ -295,99 +265,97 @@ fn backward_task(
     (dm, cf)
 }
 
-fn upsample_op(flow: AdT, mask: AdT) -> AdT {
-    #[derive(Debug)]
-    struct HostUpsample;
-
-    impl Backward<Flex, 2> for HostUpsample {
-        type State = (NodeId, NodeId);
-
-        fn backward(
-            self,
-            ops: Ops<Self::State, 2>,
-            grads: &mut Gradients,
-            checkpointer: &mut Checkpointer,
-        ) {
-            let [node_f, node_m] = ops.parents;
-            let g = HostView::<4>::new(grads.consume::<Flex>(&ops.node));
-            let (f_state, m_state) = ops.state;
-            let f = HostView::<4>::new(checkpointer.retrieve_node_output(f_state));
-            let m = HostView::<4>::new(checkpointer.retrieve_node_output(m_state));
-            let [b, _, h, w] = f.dims;
-            let (dflow, dmask) = backward(f.values(), m.values(), g.values(), [b, h, w]);
-            if let Some(node) = node_f {
-                grads.register::<Flex>(node.id, from_host(dflow, [b, 2, h, w]));
-            }
-            if let Some(node) = node_m {
-                grads.register::<Flex>(node.id, from_host(dmask, [b, 576, h, w]));
-            }
-        }
-    }
-
-    let run = |flow: &AdT, mask: &AdT| {
-        let f = HostView::<4>::new(flow.primitive().clone());
-        let m = HostView::<4>::new(mask.primitive().clone());
-        let [b, _, h, w] = f.dims;
-        from_host(
-            forward(f.values(), m.values(), [b, h, w]),
-            [b, 2, 8 * h, 8 * w],
-        )
-    };
-    match HostUpsample
-        .prepare::<NoCheckpointing>([flow.node(), mask.node()])
-        .compute_bound()
-        .stateful()
-    {
-        OpsKind::Tracked(mut prep) => {
-            let f_state = prep.checkpoint(&flow);
-            let m_state = prep.checkpoint(&mask);
-            let y = run(&flow, &mask);
-            prep.finish((f_state, m_state), y)
-        }
-        OpsKind::UnTracked(prep) => prep.finish(run(&flow, &mask)),
-    }
-}
-
 #[cfg(test)]
 mod tests {
-    use super::super::upsample::convex_upsample_tensor;
     use super::*;
-    use burn::tensor::Distribution;
+    use crate::flow::kernels::testing::{Tol, assert_close, cases, values};
+    use rand::RngExt;
 
-    /// Output and both gradients equal the tensor form's, borders included, and the plain
-    /// (inference) form gives the same output.
+    /// The definition, cell by cell: softmax over the 9 logits of each sub-pixel, then the
+    /// weighted sum of 8× the neighbours (zero outside the map).
+    fn direct(flow: &[f32], mask: &[f32], [b, h, w]: [usize; 3]) -> Vec<f32> {
+        let hw = h * w;
+        let mut out = vec![0f32; b * 2 * 64 * hw];
+        for bi in 0..b {
+            for y in 0..h {
+                for x in 0..w {
+                    for s in 0..64 {
+                        let logits: Vec<f32> = (0..9)
+                            .map(|k| mask[(bi * 576 + k * 64 + s) * hw + y * w + x])
+                            .collect();
+                        let m = logits.iter().fold(f32::MIN, |a, &v| a.max(v));
+                        let e: Vec<f32> = logits.iter().map(|v| (v - m).exp()).collect();
+                        let total: f32 = e.iter().sum();
+                        for d in 0..2 {
+                            let mut acc = 0.0;
+                            for (k, ek) in e.iter().enumerate() {
+                                let (yy, xx) = (
+                                    y as isize + (k / 3) as isize - 1,
+                                    x as isize + (k % 3) as isize - 1,
+                                );
+                                if yy >= 0 && xx >= 0 && yy < h as isize && xx < w as isize {
+                                    acc += ek / total
+                                        * 8.0
+                                        * flow[(bi * 2 + d) * hw + yy as usize * w + xx as usize];
+                                }
+                            }
+                            let (i, j) = (s / 8, s % 8);
+                            out[((bi * 2 + d) * 8 * h + 8 * y + i) * 8 * w + 8 * x + j] = acc;
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Property: on random map sizes (seeded, several tasks per image included), the forward
+    /// pass is the definition, and the backward pass is its adjoint in the flow (the output is
+    /// linear in the flow) and matches central differences in the mask logits.
     #[test]
-    fn host_upsampling_matches_the_tensor_form() {
-        let dev = Device::flex().autodiff();
-        let (b, h, w) = (2, 3, 5);
-        let f0 = Tensor::<4>::random([b, 2, h, w], Distribution::Normal(0.0, 2.0), &dev);
-        let m0 = Tensor::<4>::random([b, 576, h, w], Distribution::Normal(0.0, 3.0), &dev);
-        let weights =
-            Tensor::<4>::random([b, 2, 8 * h, 8 * w], Distribution::Normal(0.0, 1.0), &dev);
-        let run = |host: bool| {
-            let (f, m) = (
-                f0.clone().detach().require_grad(),
-                m0.clone().detach().require_grad(),
+    fn forward_is_the_definition_and_backward_its_derivative() {
+        for case in 0..12 {
+            let mut r = cases("convex upsampling", case);
+            let (b, h, w) = (
+                r.random_range(1..=2),
+                r.random_range(1..=5),
+                r.random_range(1..=6),
             );
-            let y = if host {
-                convex_upsample_host(&f, &m).expect("host path")
-            } else {
-                convex_upsample_tensor(f.clone(), m.clone())
-            };
-            let g = (y.clone() * weights.clone()).sum().backward();
-            (
-                y.inner(),
-                f.grad(&g).expect("flow gradient"),
-                m.grad(&g).expect("mask gradient"),
-            )
-        };
-        let (ya, fa, ma) = run(true);
-        let (yb, fb, mb) = run(false);
-        let d = |a: Tensor<4>, b: Tensor<4>| -> f32 { (a - b).abs().max().into_scalar() };
-        assert!(d(ya.clone(), yb) < 1e-4, "output");
-        assert!(d(fa, fb) < 1e-3, "flow gradient");
-        assert!(d(ma, mb) < 1e-4, "mask gradient");
-        let plain = convex_upsample_host(&f0.inner(), &m0.inner()).expect("inference path");
-        assert!(d(plain, ya) < 1e-5, "inference output");
+            let hw = h * w;
+            let flow = values(&mut r, b * 2 * hw, 2.0);
+            let mask = values(&mut r, b * 576 * hw, 3.0);
+            let what = format!("case {case}: {b}x{h}x{w}");
+            let y = forward(&flow, &mask, [b, h, w]);
+            assert_close(&y, &direct(&flow, &mask, [b, h, w]), Tol::Abs(1e-4), &what);
+            let g = values(&mut r, y.len(), 1.0);
+            let (dflow, dmask) = backward(&flow, &mask, &g, [b, h, w]);
+            let dot =
+                |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(u, v)| (u * v) as f64).sum::<f64>();
+            let (lhs, rhs) = (dot(&y, &g), dot(&flow, &dflow));
+            let scale = (lhs.abs() + 1.0) as f32;
+            assert_close(
+                &[rhs as f32 / scale],
+                &[lhs as f32 / scale],
+                Tol::Abs(1e-4),
+                &format!("flow adjoint, {what}"),
+            );
+            // A few mask logits by central differences.
+            for _ in 0..8 {
+                let i = r.random_range(0..mask.len());
+                let eps = 1e-2f32;
+                let (mut up, mut down) = (mask.clone(), mask.clone());
+                up[i] += eps;
+                down[i] -= eps;
+                let numeric = (dot(&forward(&flow, &up, [b, h, w]), &g)
+                    - dot(&forward(&flow, &down, [b, h, w]), &g))
+                    / (2.0 * eps as f64);
+                assert_close(
+                    &[dmask[i]],
+                    &[numeric as f32],
+                    Tol::Scaled(2e-2),
+                    &format!("∂L/∂mask[{i}], {what}"),
+                );
+            }
+        }
     }
 }
