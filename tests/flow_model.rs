@@ -193,3 +193,66 @@ fn weights_round_trip_and_reject_bad_files() {
         assert!(err.contains("do not fit"), "{err}");
     }
 }
+
+/// The sequence runner gives, for frames in memory and for image files alike, the flow of every
+/// consecutive pair in order, exactly as the network gives it pair by pair; a frame of another
+/// size is an error naming both files.
+#[test]
+fn sequence_runner_gives_every_consecutive_pair() {
+    use pins::flow::infer::Predictor;
+    use pins::flow::sequence::pair_flows;
+    let dev = Device::flex();
+    let cfg = tiny();
+    let predictor = Predictor {
+        model: Mms::new(&cfg, &dev),
+        config: cfg.clone(),
+        device: dev.clone(),
+    };
+    let frames: Vec<Image> = (0..4)
+        .map(|n| textured(40, 48, (n as f32, -0.5 * n as f32)))
+        .collect();
+    let flows: Vec<_> = pair_flows(&predictor, frames.as_slice(), 2)
+        .collect::<pins::Result<_>>()
+        .unwrap();
+    assert_eq!(flows.len(), 3);
+    for (n, pair) in flows.iter().enumerate() {
+        assert_eq!(pair.index, n);
+        assert!(pair.ms >= 0.0);
+        let want =
+            predict_flow(&predictor.model, &cfg, &frames[n], &frames[n + 1], 2, &dev).unwrap();
+        assert_eq!(pair.flow, want, "pair {n}");
+    }
+    // The same frames as files.
+    let d = tempfile::tempdir().unwrap();
+    let mut files: Vec<std::path::PathBuf> = frames
+        .iter()
+        .enumerate()
+        .map(|(n, f)| {
+            let p = d.path().join(format!("f{n}.png"));
+            pins::io::write_image(&p, f, pins::io::BitDepth::Sixteen).unwrap();
+            p
+        })
+        .collect();
+    let from_files: Vec<_> = pair_flows(&predictor, files.as_slice(), 2)
+        .collect::<pins::Result<_>>()
+        .unwrap();
+    assert_eq!(from_files.len(), 3);
+    // One frame, no pair; a frame of another size stops the sequence with both names.
+    assert_eq!(pair_flows(&predictor, &frames[..1], 2).count(), 0);
+    let odd = d.path().join("odd.png");
+    pins::io::write_image(
+        &odd,
+        &textured(24, 48, (0.0, 0.0)),
+        pins::io::BitDepth::Eight,
+    )
+    .unwrap();
+    files[2] = odd;
+    let results: Vec<_> = pair_flows(&predictor, files.as_slice(), 2).collect();
+    assert!(results[0].is_ok());
+    let err = results[1]
+        .as_ref()
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(err.contains("f1.png") && err.contains("odd.png"), "{err}");
+}

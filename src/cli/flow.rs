@@ -183,50 +183,51 @@ pub(crate) fn export(a: ExportArgs) -> Result<()> {
 }
 
 pub(crate) fn infer(a: InferArgs) -> Result<()> {
-    use pins::flow::{infer::Predictor, viz::flow_to_image};
-    let pairs: Vec<(PathBuf, PathBuf, PathBuf, Option<PathBuf>)> =
+    use pins::flow::{infer::Predictor, sequence::pair_flows, viz::flow_to_image};
+    // The frames, and where the flow of each pair (n, n + 1) goes.
+    let (frames, outputs): (Vec<PathBuf>, Vec<(PathBuf, Option<PathBuf>)>) =
         match (&a.frames, &a.img1, &a.img2) {
             (Some(dir), None, None) => {
                 let frames = io::frame_files(dir)?;
-                frames
-                    .windows(2)
-                    .map(|w| {
-                        let stem = w[0]
+                let outputs = frames
+                    .iter()
+                    .take(frames.len().saturating_sub(1))
+                    .map(|f| {
+                        let stem = f
                             .file_stem()
                             .map(|s| s.to_string_lossy().into_owned())
                             .unwrap_or_default();
                         (
-                            w[0].clone(),
-                            w[1].clone(),
                             a.out.join(format!("{stem}.flo")),
                             a.viz.as_ref().map(|v| v.join(format!("{stem}.png"))),
                         )
                     })
-                    .collect()
+                    .collect();
+                (frames, outputs)
             }
-            (None, Some(i1), Some(i2)) => {
-                vec![(i1.clone(), i2.clone(), a.out.clone(), a.viz.clone())]
-            }
+            (None, Some(i1), Some(i2)) => (
+                vec![i1.clone(), i2.clone()],
+                vec![(a.out.clone(), a.viz.clone())],
+            ),
             _ => bail!("give either --img1 and --img2, or --frames DIR"),
         };
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
     let iters = a.iters.unwrap_or(predictor.config.iters);
-    for (i1, i2, out, viz) in pairs {
-        let (x, y) = io::read_image_pair(&i1, &i2)?;
-        let started = std::time::Instant::now();
-        let flow = predictor.predict(&x, &y, iters)?;
-        let ms = started.elapsed().as_secs_f64() * 1e3;
-        io::write_flow(&out, &flow)?;
+    for pair in pair_flows(&predictor, frames.as_slice(), iters) {
+        let pair = pair?;
+        let (flow, (out, viz)) = (&pair.flow, &outputs[pair.index]);
+        io::write_flow(out, flow)?;
         if let Some(v) = viz {
-            io::write_image(&v, &flow_to_image(&flow, None), BitDepth::Eight)?;
+            io::write_image(v, &flow_to_image(flow, None), BitDepth::Eight)?;
         }
         println!(
-            "{} → {}: {}x{}, max |flow| {:.2} px, {iters} iterations, {ms:.0} ms",
-            i1.display(),
+            "{} → {}: {}x{}, max |flow| {:.2} px, {iters} iterations, {:.0} ms",
+            frames[pair.index].display(),
             out.display(),
             flow.width(),
             flow.height(),
-            flow.max_magnitude()
+            flow.max_magnitude(),
+            pair.ms
         );
     }
     Ok(())

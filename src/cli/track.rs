@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 
+use pins::flow::sequence::pair_flows;
 use pins::io;
 use pins::scene::truth::Truth;
 use pins::track::run::Tracks;
@@ -166,17 +167,15 @@ fn run(a: RunArgs) -> Result<()> {
             let files = io::frame_files(dir)?;
             let predictor = pins::flow::infer::Predictor::load(&a.weights)?;
             let iters = a.iters.unwrap_or(predictor.config.iters);
-            let mut flow_time = std::time::Duration::ZERO;
-            let flows = files.windows(2).map(|w| {
-                let (x, y) = io::read_image_pair(&w[0], &w[1])?;
-                let started = std::time::Instant::now();
-                let f = predictor.predict(&x, &y, iters)?;
-                flow_time += started.elapsed();
-                Ok((w[0].display().to_string(), f))
+            let mut flow_ms = 0.0;
+            let flows = pair_flows(&predictor, files.as_slice(), iters).map(|p| {
+                let p = p?;
+                flow_ms += p.ms;
+                Ok((files[p.index].display().to_string(), p.flow))
             });
             let tracks = tr::track_sequence(flows, &opts)?;
             let n = files.len() - 1;
-            (tracks, n, Some(flow_time.as_secs_f64() * 1e3 / n as f64))
+            (tracks, n, Some(flow_ms / n as f64))
         }
         _ => bail!("give either --flows DIR or --frames DIR"),
     };

@@ -10,6 +10,7 @@ pub mod loss;
 pub mod metrics;
 pub mod model;
 pub mod ops;
+pub mod sequence;
 pub mod train;
 pub mod viz;
 pub mod weights;

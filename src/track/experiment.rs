@@ -14,6 +14,7 @@ use super::run::{TrackOptions, Tracks, track_sequence};
 use crate::dataset::sequence::SequenceConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;
+use crate::flow::sequence::pair_flows;
 use crate::rng;
 use crate::scene::truth::Truth;
 use crate::types::Flow;
@@ -187,12 +188,9 @@ pub fn clip_flows(
                     camera.apply(&scene.frame(n)?, seed)
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let started = std::time::Instant::now();
-            let flows = frames
-                .windows(2)
-                .map(|w| p.predict(&w[0], &w[1], iters))
-                .collect::<Result<Vec<_>>>()?;
-            let ms = started.elapsed().as_secs_f64() * 1e3 / flows.len() as f64;
+            let pairs = pair_flows(p, frames.as_slice(), iters).collect::<Result<Vec<_>>>()?;
+            let ms = pairs.iter().map(|f| f.ms).sum::<f64>() / pairs.len() as f64;
+            let flows = pairs.into_iter().map(|f| f.flow).collect();
             Ok((ClipData { truth, flows }, Some(ms)))
         }
         (FlowSource::Mms, None) => Err(Error::invalid("flow", "MMS flow needs weights")),
