@@ -125,9 +125,10 @@ fn resume_continues_exactly() {
     );
     // Another config or other data is refused on resume, naming what differs.
     let other = tmp.path().join("other.json");
-    let text = fs::read_to_string(&cfg)
-        .unwrap()
-        .replace(r#""model": "mms-small","#, r#""model": "mms-small", "lr": 0.001,"#);
+    let text = fs::read_to_string(&cfg).unwrap().replace(
+        r#""model": "mms-small","#,
+        r#""model": "mms-small", "lr": 0.001,"#,
+    );
     fs::write(&other, text).unwrap();
     let before = fs::read(chunked.join("checkpoint/state.json")).unwrap();
     let err = failed(&pins(&[
@@ -394,7 +395,10 @@ fn bad_input_fails_clearly_without_output() {
         t.join("run").to_str().unwrap(),
     ]));
     assert!(err.contains("known vector"), "{err}");
-    assert!(!t.join("run").exists(), "no run folder for a refused dataset");
+    assert!(
+        !t.join("run").exists(),
+        "no run folder for a refused dataset"
+    );
 }
 
 #[test]

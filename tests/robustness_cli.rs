@@ -33,7 +33,8 @@ fn pair(h: usize, w: usize) -> (Image, Image) {
         for c in 0..3 {
             for y in 0..h {
                 for x in 0..w {
-                    let v = 0.5 + 0.4 * ((x as f32 - shift) * 0.3 + y as f32 * 0.2 + c as f32).sin();
+                    let v =
+                        0.5 + 0.4 * ((x as f32 - shift) * 0.3 + y as f32 * 0.2 + c as f32).sin();
                     im.set(c, y, x, v);
                 }
             }
@@ -135,7 +136,10 @@ fn empty_images_are_refused() {
         ]);
         assert_eq!(o.status.code(), Some(1), "simulate {shape}");
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(err.contains("empty") || err.contains("zero"), "{shape}: {err}");
+        assert!(
+            err.contains("empty") || err.contains("zero"),
+            "{shape}: {err}"
+        );
         assert!(!out.exists());
         let flo = t.join("o.flo");
         let o = pins(&[
@@ -175,7 +179,10 @@ fn out_of_range_flags_are_named() {
             flag,
             value,
         ]));
-        assert!(!err.contains("unexpected argument"), "{flag} {value}: {err}");
+        assert!(
+            !err.contains("unexpected argument"),
+            "{flag} {value}: {err}"
+        );
         let key = flag.trim_start_matches("--");
         assert!(
             err.contains(flag) || err.contains(&key.replace('-', ".")),
@@ -291,8 +298,14 @@ fn malformed_inputs_never_panic() {
     let mut corpus: Vec<(String, Vec<u8>)> = vec![
         ("empty.png".into(), Vec::new()),
         ("zeros.png".into(), vec![0; 64]),
-        ("garbage.png".into(), b"\x89PNG\r\n\x1a\nthis is not png".to_vec()),
-        ("half.png".into(), good_bytes[..good_bytes.len() / 2].to_vec()),
+        (
+            "garbage.png".into(),
+            b"\x89PNG\r\n\x1a\nthis is not png".to_vec(),
+        ),
+        (
+            "half.png".into(),
+            good_bytes[..good_bytes.len() / 2].to_vec(),
+        ),
         ("text.flo".into(), b"PIEH".to_vec()),
         ("huge.flo".into(), {
             let mut b = 202021.25f32.to_le_bytes().to_vec();
@@ -347,7 +360,17 @@ fn malformed_inputs_never_panic() {
             vec!["simulate", "--in", &g, "--out", "OUT.png", "--psf", &f],
             vec!["simulate", "--in", &g, "--out", "OUT.png", "--config", &f],
             vec!["infer", "--img1", &f, "--img2", &g, "--out", "OUT.flo"],
-            vec!["infer", "--weights", &f, "--img1", &g, "--img2", &g, "--out", "OUT.flo"],
+            vec![
+                "infer",
+                "--weights",
+                &f,
+                "--img1",
+                &g,
+                "--img2",
+                &g,
+                "--out",
+                "OUT.flo",
+            ],
             vec!["infer", "--frames", &d, "--out", "OUT"],
             vec!["eval", "--data", &d, "--out", "OUT.json"],
             vec!["train", "--data", &d, "--out", "OUT"],
@@ -360,7 +383,9 @@ fn malformed_inputs_never_panic() {
             vec!["track", "experiment", "--config", &f, "--out", "OUT"],
             vec!["compare", &f, &g],
             vec!["array", "calibrate", "--grid", &f, "--out", "OUT.json"],
-            vec!["array", "stitch", "--calib", &f, "--in", &g, "--out", "OUT.png"],
+            vec![
+                "array", "stitch", "--calib", &f, "--in", &g, "--out", "OUT.png",
+            ],
             vec!["array", "render", "--in", &f, "--out", "OUT.png"],
         ];
         for cmd in commands {

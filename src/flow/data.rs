@@ -95,7 +95,10 @@ impl FlowDataset {
         for p in &self.pairs {
             hash.update(p.name.as_bytes());
             hash.update([0]);
-            for f in [Some(&p.img1), Some(&p.img2), p.flow.as_ref()].into_iter().flatten() {
+            for f in [Some(&p.img1), Some(&p.img2), p.flow.as_ref()]
+                .into_iter()
+                .flatten()
+            {
                 let rel = f.strip_prefix(&self.root).unwrap_or(f);
                 let len = std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len();
                 hash.update(rel.to_string_lossy().as_bytes());

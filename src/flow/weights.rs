@@ -54,7 +54,9 @@ pub fn canonical_safetensors(bytes: &[u8]) -> Result<Vec<u8>> {
         .and_then(|b| b.try_into().ok())
         .map(u64::from_le_bytes)
         .ok_or_else(|| bad("no header"))? as usize;
-    let header = bytes.get(8..8usize.saturating_add(n)).ok_or_else(|| bad("header"))?;
+    let header = bytes
+        .get(8..8usize.saturating_add(n))
+        .ok_or_else(|| bad("header"))?;
     let data = &bytes[8 + n..];
     let header: BTreeMap<String, Value> =
         serde_json::from_slice(header).map_err(|e| bad(&e.to_string()))?;
@@ -85,7 +87,8 @@ pub fn canonical_safetensors(bytes: &[u8]) -> Result<Vec<u8>> {
         );
         out_header.insert(name, Value::Object(e.into_iter().collect()));
     }
-    let mut text = serde_json::to_vec(&Value::Object(out_header)).map_err(|e| bad(&e.to_string()))?;
+    let mut text =
+        serde_json::to_vec(&Value::Object(out_header)).map_err(|e| bad(&e.to_string()))?;
     while text.len() % 8 != 0 {
         text.push(b' ');
     }
@@ -210,7 +213,10 @@ mod tests {
             &[("format", "pt"), ("x", "1")],
         );
         assert_ne!(a, b);
-        let (ca, cb) = (canonical_safetensors(&a).unwrap(), canonical_safetensors(&b).unwrap());
+        let (ca, cb) = (
+            canonical_safetensors(&a).unwrap(),
+            canonical_safetensors(&b).unwrap(),
+        );
         assert_eq!(ca, cb);
         let n = u64::from_le_bytes(ca[..8].try_into().unwrap()) as usize;
         assert_eq!(n % 8, 0, "header padded to 8 bytes");

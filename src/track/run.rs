@@ -104,7 +104,10 @@ pub fn track_sequence(
     if !(opts.threshold.is_finite() && opts.threshold >= 0.0) {
         return Err(Error::invalid(
             "--threshold",
-            format!("must be a finite number >= 0 (px/frame), got {}", opts.threshold),
+            format!(
+                "must be a finite number >= 0 (px/frame), got {}",
+                opts.threshold
+            ),
         ));
     }
     if !(opts.noise_k.is_finite() && opts.noise_k >= 0.0) {

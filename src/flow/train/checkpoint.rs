@@ -81,8 +81,11 @@ pub fn dir(run: &Path) -> PathBuf {
 /// files of older steps afterwards.
 pub fn write(run: &Path, state: &CheckpointState, model: &[u8], optimizer: &[u8]) -> Result<()> {
     let d = dir(run);
-    io::write_bytes_atomic(&d.join(&state.model_file), model)?;
-    io::write_bytes_atomic(&d.join(&state.optimizer_file), optimizer)?;
+    io::write_bytes_atomic(&d.join(&state.model_file), &canonical_burnpack(model)?)?;
+    io::write_bytes_atomic(
+        &d.join(&state.optimizer_file),
+        &canonical_burnpack(optimizer)?,
+    )?;
     let json = serde_json::to_string_pretty(state)
         .map_err(|e| Error::invalid("checkpoint", e.to_string()))?;
     io::write_bytes_atomic(&d.join("state.json"), json.as_bytes())?;
@@ -99,6 +102,27 @@ pub fn write(run: &Path, state: &CheckpointState, model: &[u8], optimizer: &[u8]
         }
     }
     Ok(())
+}
+
+/// The same burnpack content with its tensors in name order. Burn writes the optimiser's state
+/// from a hash map, so the same state could otherwise give different files; metadata and
+/// scalars are already sorted maps.
+pub fn canonical_burnpack(bytes: &[u8]) -> Result<Vec<u8>> {
+    use burn::store::burn_pack::{Bytes, Reader, Writer};
+    let bad = |e: &dyn std::fmt::Display| Error::invalid("checkpoint", format!("burnpack: {e}"));
+    let reader = Reader::from_bytes(Bytes::from_bytes_vec(bytes.to_vec())).map_err(|e| bad(&e))?;
+    let metadata = reader.metadata().clone();
+    let scalars = reader.scalars().clone();
+    let mut tensors = reader.into_tensors().map_err(|e| bad(&e))?;
+    tensors.sort_by(|a, b| a.name.cmp(&b.name));
+    let mut writer = Writer::new(tensors);
+    for (k, v) in &metadata {
+        writer = writer.with_metadata(k, v);
+    }
+    for (k, v) in &scalars {
+        writer = writer.with_scalar(k, *v);
+    }
+    Ok(writer.into_bytes().map_err(|e| bad(&e))?.to_vec())
 }
 
 /// A checkpoint read back: its state, the model bytes and the optimiser bytes.

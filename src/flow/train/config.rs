@@ -114,7 +114,11 @@ impl TrainConfig {
                 finite_in(self.epsilon, 0.0, 1.0),
                 "a number in (0, 1] (AdamW divides by sqrt(v) + epsilon)",
             ),
-            ("clip", finite_in(self.clip, 0.0, f64::MAX), "a finite number > 0"),
+            (
+                "clip",
+                finite_in(self.clip, 0.0, f64::MAX),
+                "a finite number > 0",
+            ),
             (
                 "rho",
                 finite_in(self.rho as f64, 0.0, 1.0),
@@ -161,13 +165,19 @@ mod tests {
                 ..TrainConfig::default()
             };
             let err = cfg.validate().unwrap_err().to_string();
-            assert!(err.contains("train.epsilon") && err.contains("(0, 1]"), "{err}");
+            assert!(
+                err.contains("train.epsilon") && err.contains("(0, 1]"),
+                "{err}"
+            );
         }
         let cfg = TrainConfig {
             crop: [100, 160],
             ..TrainConfig::default()
         };
         let err = cfg.validate().unwrap_err().to_string();
-        assert!(err.contains("train.crop") && err.contains("[100,160]"), "{err}");
+        assert!(
+            err.contains("train.crop") && err.contains("[100,160]"),
+            "{err}"
+        );
     }
 }

@@ -4,6 +4,7 @@ pub mod checkpoint;
 pub mod clip;
 pub mod config;
 pub mod log;
+pub mod param_ids;
 pub mod schedule;
 pub mod trainer;
 

@@ -58,7 +58,11 @@ pub struct TrainSummary {
 }
 
 /// Refuses to resume with a config other than the run's, naming each setting that differs.
-fn refuse_other_config(stored: &TrainConfig, given: &TrainConfig, opts: &TrainOptions) -> Result<()> {
+fn refuse_other_config(
+    stored: &TrainConfig,
+    given: &TrainConfig,
+    opts: &TrainOptions,
+) -> Result<()> {
     // `--steps` overrides the file's step count when the run starts; compare like with like.
     let mut given = given.clone();
     if let Some(s) = opts.steps {
@@ -180,7 +184,8 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     let device = opts.device.clone().autodiff();
     // The initial weights are a function of the seed too, so two runs of one config agree.
     device.seed(rng::derive(config.seed, &[rng::purpose::TRAIN, u64::MAX]));
-    let mut model = Mms::new(&model_config, &device);
+    // Ids from parameter paths, so that checkpoints of equal runs are equal files.
+    let mut model = super::param_ids::ids_from_paths(Mms::new(&model_config, &device));
     if let Some(init) = &opts.init {
         if opts.resume {
             return Err(Error::invalid(
