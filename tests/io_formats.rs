@@ -1,5 +1,8 @@
 //! Integration tests of `pins::io` on files written by other tools (`../shared/data`, see its
-//! SOURCES.md): .flo, KITTI PNG flow, PFM, PPM/PNG frames and 16-bit TIFF.
+//! SOURCES.md): .flo, KITTI PNG flow, PFM, PPM/PNG frames and 16-bit TIFF; the pixel budget
+//! and reader messages through `pins simulate`.
+
+mod common;
 
 use std::path::{Path, PathBuf};
 
@@ -348,4 +351,149 @@ fn float_formats_dispatch_by_extension() {
     }
     // Nothing but the finished files is left in the directory.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 4);
+}
+
+/// CRC-32 as PNG uses it (bitwise; the files here are tiny).
+fn crc32(data: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in data {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xedb8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A real 2x2 PNG whose IHDR is patched to declare `w`x`h`, with its CRC fixed.
+fn png_declaring(w: u32, h: u32) -> Vec<u8> {
+    use pins::io::{BitDepth, write_image};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("tiny.png");
+    write_image(&p, &Image::filled(1, 2, 2, 0.5), BitDepth::Eight).unwrap();
+    let mut b = std::fs::read(&p).unwrap();
+    assert_eq!(&b[12..16], b"IHDR");
+    b[16..20].copy_from_slice(&w.to_be_bytes());
+    b[20..24].copy_from_slice(&h.to_be_bytes());
+    let crc = crc32(&b[12..29]);
+    b[29..33].copy_from_slice(&crc.to_be_bytes());
+    b
+}
+
+/// `pins simulate` on a small PNG declaring 16000x16000 is refused at once by the pixel budget,
+/// naming the file, the declared size and the flag; `--max-pixels` moves the budget both ways.
+#[test]
+fn simulate_refuses_images_over_the_pixel_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let huge = dir.path().join("huge.png");
+    std::fs::write(&huge, png_declaring(16000, 16000)).unwrap();
+    let out = dir.path().join("out.png");
+    let (h, o) = (huge.to_str().unwrap(), out.to_str().unwrap());
+    let e = common::failed(&common::pins(&["simulate", "--in", h, "--out", o]));
+    assert!(
+        e.contains("huge.png") && e.contains("16000x16000") && e.contains("--max-pixels"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    // A 1500x1000 frame: refused under 1 MP, simulated under 2 MP.
+    let frame = dir.path().join("frame.png");
+    pins::io::write_image(
+        &frame,
+        &Image::filled(1, 1000, 1500, 0.5),
+        pins::io::BitDepth::Eight,
+    )
+    .unwrap();
+    let f = frame.to_str().unwrap();
+    let args = |budget: &'static str| {
+        vec![
+            "--max-pixels",
+            budget,
+            "simulate",
+            "--in",
+            f,
+            "--out",
+            o,
+            "--psf",
+            "delta",
+        ]
+    };
+    let e = common::failed(&common::pins(&args("1000000")));
+    assert!(e.contains("1500x1000") && e.contains("--max-pixels"), "{e}");
+    assert!(!out.exists());
+    common::ok(&common::pins(&args("2000000")));
+    assert_eq!(read_image(&out).unwrap().shape(), (1, 1000, 1500));
+}
+
+/// A flow EXR (channels u, v) given to `pins simulate` as its image gets an image reader's
+/// message, not one about PSF channels.
+#[test]
+fn two_channel_exr_as_image_names_its_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let flow = dir.path().join("flow.exr");
+    pins::io::write_flow(&flow, &Flow::zeros(8, 8)).unwrap();
+    let out = dir.path().join("o.png");
+    let e = common::failed(&common::pins(&[
+        "simulate",
+        "--in",
+        flow.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(
+        e.contains("flow.exr") && e.contains("an image needs") && e.contains("[u, v]"),
+        "{e}"
+    );
+    assert!(!e.contains("PSF channels"), "{e}");
+}
+
+/// In every real flow file, a vector is either known (both components finite, below 1e9) or
+/// unknown (both NaN): the readers never leave half a vector.
+#[test]
+fn real_flows_have_whole_unknown_vectors() {
+    let Some(dir) = data_dir() else { return };
+    let mut files: Vec<&str> = FLO.iter().map(|r| r.0).collect();
+    files.push("kitti2015_000000/flow_gt.png");
+    for rel in files {
+        let f = read_flow(&dir.join(rel)).unwrap();
+        let mut unknown = 0;
+        for (&u, &v) in f.u().iter().zip(f.v()) {
+            if u.is_nan() || v.is_nan() {
+                assert!(u.is_nan() && v.is_nan(), "{rel}: ({u}, {v})");
+                unknown += 1;
+            } else {
+                assert!(u.abs() < 1e9 && v.abs() < 1e9, "{rel}: ({u}, {v})");
+            }
+        }
+        let expected = f.valid_mask().iter().filter(|&&m| !m).count();
+        assert_eq!(unknown, expected, "{rel}");
+    }
+}
+
+/// A real flow written as FlyingThings3D-style PFM reads back identical, through the
+/// dispatcher both ways, unknown vectors included (Middlebury has some).
+#[test]
+fn real_flow_round_trips_through_pfm() {
+    let Some(dir) = data_dir() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    for rel in [
+        "middlebury_rubberwhale/flow10.flo",
+        "flyingchairs_crops/00001_flow.flo",
+    ] {
+        let f = read_flow(&dir.join(rel)).unwrap();
+        let p = tmp.path().join("f.pfm");
+        pins::io::write_flow(&p, &f).unwrap();
+        let back = read_flow(&p).unwrap();
+        assert_eq!(back.valid_mask(), f.valid_mask(), "{rel}");
+        for (a, b) in back.data().iter().zip(f.data()) {
+            assert!(a == b || (a.is_nan() && b.is_nan()), "{rel}: {a} vs {b}");
+        }
+        let bytes = std::fs::read(&p).unwrap();
+        let header = format!("PF\n{} {}\n-1.0\n", f.width(), f.height());
+        assert!(bytes.starts_with(header.as_bytes()), "{rel}");
+        assert_eq!(bytes.len(), header.len() + 12 * f.width() * f.height());
+    }
 }

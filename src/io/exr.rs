@@ -8,6 +8,8 @@ use exr::prelude as x;
 use exr::prelude::{ReadChannels, ReadLayers, WritableImage};
 
 use super::atomic::{read_bytes, write_bytes_atomic};
+use super::budget;
+use super::flow_file::unknown_to_nan;
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
 
@@ -17,9 +19,22 @@ struct Channel {
     data: Vec<f32>,
 }
 
-/// Reads the first valid layer of an EXR file: `(height, width, channels sorted by name)`.
-fn read_channels(path: &Path) -> Result<(usize, usize, Vec<Channel>)> {
-    let bytes = read_bytes(path)?;
+/// Decodes the first valid layer of EXR bytes: `(height, width, channels sorted by name)`.
+/// The layer sizes and channel counts of every header are checked against the pixel budget
+/// before any pixel is read.
+fn decode_channels(bytes: &[u8], path: &Path) -> Result<(usize, usize, Vec<Channel>)> {
+    let bad = |e: x::Error| Error::format(path, format!("cannot decode OpenEXR: {e}"));
+    let meta = x::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(bad)?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        budget::check_pixels(
+            path,
+            "OpenEXR layer",
+            size.width() as u64,
+            size.height() as u64,
+            header.channels.list.len() as u64,
+        )?;
+    }
     let img = x::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -28,7 +43,7 @@ fn read_channels(path: &Path) -> Result<(usize, usize, Vec<Channel>)> {
         .all_attributes()
         .non_parallel()
         .from_buffered(Cursor::new(bytes))
-        .map_err(|e| Error::format(path, format!("cannot decode OpenEXR: {e}")))?;
+        .map_err(bad)?;
     let layer = img.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
     let mut out = Vec::with_capacity(layer.channel_data.list.len());
@@ -68,7 +83,43 @@ fn names(channels: &[Channel]) -> String {
 /// Reads an EXR image: channels `R, G, B` (alpha dropped) when present, else a lone `Y`,
 /// else every channel sorted by name. Samples are returned as stored (not clamped).
 pub fn read_exr(path: &Path) -> Result<Image> {
-    let (h, w, mut chans) = read_channels(path)?;
+    decode_exr(&read_bytes(path)?, path)
+}
+
+/// Decodes EXR bytes as [`read_exr`] does; `path` is used only in error messages.
+pub fn decode_exr(bytes: &[u8], path: &Path) -> Result<Image> {
+    let (h, w, chans) = decode_channels(bytes, path)?;
+    planes_to_image(h, w, chans, path)
+}
+
+/// Decodes EXR bytes as a picture for the camera ([`crate::io::read_image`]): like
+/// [`decode_exr`], but only 1 (`Y` or a lone channel) or 3 (`R, G, B` or three channels)
+/// channels are accepted, and anything else is refused with the channel names (a 2-channel
+/// `u, v` file is a flow field, not an image).
+pub(crate) fn decode_exr_as_image(bytes: &[u8], path: &Path) -> Result<Image> {
+    let (h, w, chans) = decode_channels(bytes, path)?;
+    let listed = names(&chans);
+    let flow_like = find(&chans, "u").is_some() && find(&chans, "v").is_some();
+    let im = planes_to_image(h, w, chans, path)?;
+    if matches!(im.channels(), 1 | 3) {
+        return Ok(im);
+    }
+    let hint = if flow_like {
+        "; channels u and v make it a flow field, which is read as flow, not as an image"
+    } else {
+        ""
+    };
+    Err(Error::format(
+        path,
+        format!(
+            "an image needs 1 channel (Y) or 3 (R, G, B), this EXR has {} channels {listed}{hint}",
+            im.channels()
+        ),
+    ))
+}
+
+/// The image planes of decoded channels: `R, G, B` when present, else `Y`, else all of them.
+fn planes_to_image(h: usize, w: usize, mut chans: Vec<Channel>, path: &Path) -> Result<Image> {
     let order: Vec<usize> = match (find(&chans, "R"), find(&chans, "G"), find(&chans, "B")) {
         (Some(r), Some(g), Some(b)) => vec![r, g, b],
         _ => match find(&chans, "Y") {
@@ -87,8 +138,14 @@ pub fn read_exr(path: &Path) -> Result<Image> {
 }
 
 /// Reads a flow EXR: channels `u`,`v`, else `R`,`G`, else `X`,`Y` give the u and v planes.
+/// Unknown vectors (a component non-finite or of magnitude `>= 1e9`) become NaN.
 pub fn read_flow_exr(path: &Path) -> Result<Flow> {
-    let (h, w, mut chans) = read_channels(path)?;
+    decode_flow_exr(&read_bytes(path)?, path)
+}
+
+/// Decodes flow EXR bytes as [`read_flow_exr`] does; `path` is used only in error messages.
+pub fn decode_flow_exr(bytes: &[u8], path: &Path) -> Result<Flow> {
+    let (h, w, mut chans) = decode_channels(bytes, path)?;
     let pair = [("u", "v"), ("R", "G"), ("X", "Y")]
         .iter()
         .find_map(|(a, b)| Some((find(&chans, a)?, find(&chans, b)?)));
@@ -103,6 +160,7 @@ pub fn read_flow_exr(path: &Path) -> Result<Flow> {
     };
     let mut data = std::mem::take(&mut chans[iu].data);
     data.append(&mut chans[iv].data);
+    unknown_to_nan(&mut data);
     Flow::from_vec(h, w, data)
 }
 
@@ -219,5 +277,33 @@ mod tests {
         let q = dir.path().join("e.exr");
         assert!(write_exr(&q, &Image::zeros(1, 0, 3)).is_err());
         assert!(!q.exists());
+    }
+
+    #[test]
+    fn unknown_flow_is_nan_in_both_components() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("u.exr");
+        // Written as an image so that the values go in unfiltered: R = u, G = v.
+        let mut im = ramp(3, 1, 5);
+        for (x, (u, v)) in [
+            (f32::NAN, 1.0),
+            (2.0, f32::INFINITY),
+            (1e9, 0.5),
+            (0.5, -1e10),
+            (1.5, -2.5),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            im.set(0, 0, x, u);
+            im.set(1, 0, x, v);
+        }
+        write_exr(&p, &im).unwrap();
+        let f = read_flow_exr(&p).unwrap();
+        for x in 0..4 {
+            let (u, v) = f.get(0, x);
+            assert!(u.is_nan() && v.is_nan(), "pixel {x}: ({u}, {v})");
+        }
+        assert_eq!(f.get(0, 4), (1.5, -2.5));
     }
 }

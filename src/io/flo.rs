@@ -2,26 +2,25 @@
 //!
 //! Layout: magic `202021.25` (f32 LE), width (i32 LE), height (i32 LE), then `H*W` interleaved
 //! `(u, v)` f32 LE pairs, rows top to bottom. Components with magnitude `>= 1e9` mark unknown
-//! flow (Middlebury convention) and are read as NaN.
+//! flow (Middlebury convention); they, and non-finite components, are read as NaN vectors.
 
 use std::path::Path;
 
 use super::atomic::{read_bytes, write_bytes_atomic};
+use super::budget;
+use super::flow_file::is_unknown;
 use crate::error::{Error, Result};
 use crate::types::Flow;
 
 /// The `.flo` magic number, stored as a little-endian `f32` ("PIEH" in ASCII).
 pub const FLO_MAGIC: f32 = 202021.25;
-/// Largest width or height accepted when reading.
-pub const MAX_SIDE: usize = 100_000;
-/// Largest pixel count `W*H` accepted when reading.
-pub const MAX_PIXELS: usize = 500_000_000;
 /// Components at or above this magnitude mean "unknown" in Middlebury files.
 pub const UNKNOWN_THRESHOLD: f32 = 1e9;
 
 const HEADER_LEN: usize = 12;
 
-/// Reads a Middlebury `.flo` file; unknown vectors become NaN.
+/// Reads a Middlebury `.flo` file; unknown vectors become NaN. The declared size is checked
+/// against the pixel budget ([`super::budget`]) before anything else.
 pub fn read_flo(path: &Path) -> Result<Flow> {
     let bytes = read_bytes(path)?;
     decode_flo(&bytes, path)
@@ -58,16 +57,8 @@ pub fn decode_flo(bytes: &[u8], path: &Path) -> Result<Flow> {
             format!(".flo size must be positive, found width {w}, height {h}"),
         ));
     }
+    budget::check_pixels(path, ".flo flow", w as u64, h as u64, 2)?;
     let (w, h) = (w as usize, h as usize);
-    if w > MAX_SIDE || h > MAX_SIDE || w * h > MAX_PIXELS {
-        return Err(Error::format(
-            path,
-            format!(
-                ".flo size {w}x{h} is implausible (limits: side <= {MAX_SIDE}, \
-                 pixels <= {MAX_PIXELS}); the header is probably corrupt"
-            ),
-        ));
-    }
     let n = w * h;
     let expected = HEADER_LEN + 8 * n;
     if bytes.len() != expected {
@@ -89,7 +80,7 @@ pub fn decode_flo(bytes: &[u8], path: &Path) -> Result<Flow> {
     for (i, pair) in bytes[HEADER_LEN..].chunks_exact(8).enumerate() {
         let a = f32::from_le_bytes([pair[0], pair[1], pair[2], pair[3]]);
         let b = f32::from_le_bytes([pair[4], pair[5], pair[6], pair[7]]);
-        if a.abs() >= UNKNOWN_THRESHOLD || b.abs() >= UNKNOWN_THRESHOLD {
+        if is_unknown(a, b) {
             u[i] = f32::NAN;
             v[i] = f32::NAN;
         } else {
@@ -225,5 +216,31 @@ mod tests {
         let p = dir.path().join("e.flo");
         assert!(write_flo(&p, &Flow::zeros(0, 3)).is_err());
         assert!(!p.exists());
+    }
+
+    #[test]
+    fn non_finite_components_make_the_whole_vector_unknown() {
+        // A NaN or infinite component (not only >= 1e9) is unknown, and so is its partner.
+        let mut b = header(4, 1);
+        for v in [f32::NAN, 2.0, 1.0, f32::INFINITY, -1e9, 0.0, 3.0, -4.0] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        let f = decode_flo(&b, Path::new("n.flo")).unwrap();
+        for x in 0..3 {
+            let (u, v) = f.get(0, x);
+            assert!(u.is_nan() && v.is_nan(), "pixel {x}: ({u}, {v})");
+        }
+        assert_eq!(f.get(0, 3), (3.0, -4.0));
+    }
+
+    #[test]
+    fn budget_refuses_before_the_length_check() {
+        let e = decode_flo(&header(16000, 16000), Path::new("h.flo"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("h.flo") && e.contains("16000x16000") && e.contains("--max-pixels"),
+            "{e}"
+        );
     }
 }

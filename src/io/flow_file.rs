@@ -1,12 +1,16 @@
 //! Flow files of any supported format, chosen by extension: `.flo`, KITTI `.png`, `.pfm`, `.exr`.
+//!
+//! Every reader returns unknown vectors as NaN (both components): the Middlebury marker
+//! (a component of magnitude `>= 1e9`), a non-finite component, or KITTI's invalid bit.
 
 use std::path::Path;
 
-use super::exr::{read_flow_exr, write_flow_exr};
+use super::atomic::read_bytes;
+use super::exr::{decode_flow_exr, write_flow_exr};
 use super::ext_lower;
-use super::flo::{read_flo, write_flo};
-use super::kitti::{read_kitti_flow, write_kitti_flow};
-use super::pfm::read_pfm_flow;
+use super::flo::{UNKNOWN_THRESHOLD, decode_flo, write_flo};
+use super::kitti::{decode_kitti_flow, write_kitti_flow};
+use super::pfm::{decode_pfm_flow, write_pfm_flow};
 use crate::error::{Error, Result};
 use crate::types::Flow;
 
@@ -14,11 +18,26 @@ use crate::types::Flow;
 /// (3-channel, first two are u and v), `.exr` (channels u,v / R,G / X,Y). Unknown or invalid
 /// vectors are NaN.
 pub fn read_flow(path: &Path) -> Result<Flow> {
+    check_readable_ext(path)?;
+    decode_flow(&read_bytes(path)?, path)
+}
+
+/// Decodes the bytes of a flow file as [`read_flow`] does; the extension of `path` picks the
+/// format and `path` names the file in errors.
+pub fn decode_flow(bytes: &[u8], path: &Path) -> Result<Flow> {
+    check_readable_ext(path)?;
     match ext_lower(path).as_str() {
-        "flo" => read_flo(path),
-        "png" => Ok(read_kitti_flow(path)?.0),
-        "pfm" => read_pfm_flow(path),
-        "exr" => read_flow_exr(path),
+        "flo" => decode_flo(bytes, path),
+        "png" => Ok(decode_kitti_flow(bytes, path)?.0),
+        "pfm" => decode_pfm_flow(bytes, path),
+        _ => decode_flow_exr(bytes, path),
+    }
+}
+
+/// Refuses an extension that no flow reader knows, before the file is read.
+fn check_readable_ext(path: &Path) -> Result<()> {
+    match ext_lower(path).as_str() {
+        "flo" | "png" | "pfm" | "exr" => Ok(()),
         other => Err(Error::invalid(
             format!("flow file {}", path.display()),
             format!(
@@ -29,19 +48,42 @@ pub fn read_flow(path: &Path) -> Result<Flow> {
     }
 }
 
-/// Writes a flow field by extension: `.flo`, `.png` (KITTI 16-bit; non-finite → invalid,
-/// values clamped to about ±512 px), `.exr` (f32 channels u, v).
+/// Writes a flow field by extension: `.flo`, `.png` (KITTI 16-bit; unknown → invalid,
+/// values clamped to about ±512 px), `.pfm` (FlyingThings3D layout: colour `PF`, u, v and a
+/// zero third channel, little endian, rows bottom to top; NaN kept), `.exr` (f32 channels
+/// u, v).
 pub fn write_flow(path: &Path, flow: &Flow) -> Result<()> {
     match ext_lower(path).as_str() {
         "flo" => write_flo(path, flow),
         "png" => write_kitti_flow(path, flow),
+        "pfm" => write_pfm_flow(path, flow),
         "exr" => write_flow_exr(path, flow),
         other => Err(Error::invalid(
             format!("flow file {}", path.display()),
             format!(
-                "unsupported extension {other:?}; writable flow formats: .flo, .png (KITTI), .exr"
+                "unsupported extension {other:?}; writable flow formats: .flo, .png (KITTI), \
+                 .pfm, .exr"
             ),
         )),
+    }
+}
+
+/// Whether a vector read from a file means "unknown": a component that is not finite or whose
+/// magnitude is at least `1e9` (the Middlebury marker; FlyingThings3D and Sintel use it too).
+pub fn is_unknown(u: f32, v: f32) -> bool {
+    !(u.abs() < UNKNOWN_THRESHOLD && v.abs() < UNKNOWN_THRESHOLD)
+}
+
+/// Sets both components of every unknown vector ([`is_unknown`]) to NaN in planar flow data
+/// `[u plane, v plane]`.
+pub(crate) fn unknown_to_nan(data: &mut [f32]) {
+    let n = data.len() / 2;
+    let (u, v) = data.split_at_mut(n);
+    for (a, b) in u.iter_mut().zip(v.iter_mut()) {
+        if is_unknown(*a, *b) {
+            *a = f32::NAN;
+            *b = f32::NAN;
+        }
     }
 }
 
@@ -61,7 +103,7 @@ mod tests {
         )
         .unwrap();
         f.set(1, 2, f32::NAN, f32::NAN);
-        for ext in ["flo", "png", "exr", "FLO"] {
+        for ext in ["flo", "png", "exr", "pfm", "FLO", "PFM"] {
             let p = dir.path().join(format!("f.{ext}"));
             write_flow(&p, &f).unwrap();
             let back = read_flow(&p).unwrap();
@@ -82,5 +124,38 @@ mod tests {
         let e = read_flow(&p).unwrap_err().to_string();
         assert!(e.contains(".pfm"), "{e}");
         assert!(!p.exists());
+    }
+
+    #[test]
+    fn unknown_markers_are_nan_through_every_reader() {
+        // is_unknown: the Middlebury marker and non-finite components, on either axis.
+        assert!(!is_unknown(0.0, -999_999_999.0 / 1000.0));
+        for (u, v) in [
+            (1e9, 0.0),
+            (0.0, -1e9),
+            (f32::NAN, 0.0),
+            (0.0, f32::INFINITY),
+        ] {
+            assert!(is_unknown(u, v), "({u}, {v})");
+        }
+        // A field with one good vector and one unknown one per marker, through each writer and
+        // back through decode_flow: every unknown vector is NaN in both components.
+        let dir = tempfile::tempdir().unwrap();
+        let markers = [(1e10f32, 0.5f32), (0.5, f32::NAN), (f32::INFINITY, 1.0)];
+        for ext in ["flo", "pfm", "exr", "png"] {
+            let mut f = Flow::zeros(1, 4);
+            f.set(0, 0, 1.5, -2.0);
+            for (x, &(u, v)) in markers.iter().enumerate() {
+                f.set(0, x + 1, u, v);
+            }
+            let p = dir.path().join(format!("m.{ext}"));
+            write_flow(&p, &f).unwrap();
+            let back = decode_flow(&std::fs::read(&p).unwrap(), &p).unwrap();
+            assert_eq!(back.get(0, 0), (1.5, -2.0), "{ext}");
+            for x in 1..4 {
+                let (u, v) = back.get(0, x);
+                assert!(u.is_nan() && v.is_nan(), "{ext} pixel {x}: ({u}, {v})");
+            }
+        }
     }
 }

@@ -4,10 +4,12 @@
 use std::io::Cursor;
 use std::path::Path;
 
-use image::{DynamicImage, ImageBuffer, ImageFormat, ImageReader};
+use image::{DynamicImage, ImageBuffer, ImageDecoder, ImageFormat, ImageReader, Limits};
 
 use super::atomic::{read_bytes, write_bytes_atomic};
-use super::{ext_lower, read_exr, read_npy, read_pfm, write_exr, write_npy, write_pfm};
+use super::npy::decode_npy;
+use super::pfm::decode_pfm;
+use super::{budget, exr, ext_lower, raster_guard, write_exr, write_npy, write_pfm};
 use crate::error::{Error, Result};
 use crate::types::Image;
 
@@ -25,13 +27,43 @@ const WRITE_EXTS: &str = "png, ppm, pgm, pnm, jpg, jpeg, tif, tiff, exr, pfm, np
 /// Reads an image as planar `[C, H, W]`: grey (with or without alpha) gives 1 channel, colour
 /// gives 3 (alpha is dropped). 8-bit samples are divided by 255, 16-bit by 65535, float
 /// samples are kept. `.exr`, `.npy` and `.pfm` go to their own readers; other files are
-/// recognised by content (PNG, JPEG, PPM/PGM, TIFF), falling back to the extension.
+/// recognised by content (PNG, JPEG, PPM/PGM, TIFF), falling back to the extension. The size
+/// the file declares is checked against the pixel budget ([`super::budget`]) before decoding.
 pub fn read_image(path: &Path) -> Result<Image> {
+    decode_image(&read_bytes(path)?, path)
+}
+
+/// Decodes the bytes of an image file as [`read_image`] does; `path` names the file in errors
+/// and its extension picks the float formats.
+pub fn decode_image(bytes: &[u8], path: &Path) -> Result<Image> {
     match ext_lower(path).as_str() {
-        "exr" => read_exr(path),
-        "npy" => read_npy(path),
-        "pfm" => read_pfm(path),
-        _ => dynamic_to_image(decode_dynamic(path)?, path),
+        "exr" => exr::decode_exr_as_image(bytes, path),
+        "npy" => npy_as_image(decode_npy(bytes, path)?, path),
+        "pfm" => decode_pfm(bytes, path),
+        _ => dynamic_to_image(decode_dynamic_bytes(bytes, path)?, path),
+    }
+}
+
+/// An `.npy` array as an image: 1 or 3 channels are kept, a fourth (alpha) is dropped, and two
+/// (which no image has) are refused.
+fn npy_as_image(im: Image, path: &Path) -> Result<Image> {
+    match im.channels() {
+        1 | 3 => Ok(im),
+        4 => {
+            let (_, h, w) = im.shape();
+            let mut data = im.into_vec();
+            data.truncate(3 * h * w);
+            Image::from_vec(3, h, w, data)
+        }
+        c => Err(Error::format(
+            path,
+            format!(
+                "an image needs 1 channel (grey), 3 (RGB) or 4 (RGBA), this .npy array has {c} \
+                 channels of {}x{}",
+                im.width(),
+                im.height()
+            ),
+        )),
     }
 }
 
@@ -125,10 +157,21 @@ pub fn write_image(path: &Path, image: &Image, depth: BitDepth) -> Result<()> {
     write_bytes_atomic(path, &bytes)
 }
 
-/// Decodes a raster file through the `image` crate, naming the path in every error.
-pub(crate) fn decode_dynamic(path: &Path) -> Result<DynamicImage> {
-    let bytes = read_bytes(path)?;
-    let mut reader = ImageReader::new(Cursor::new(&bytes[..]))
+/// Decodes raster bytes (PNG, JPEG, PPM/PGM, TIFF) after checking the declared size against
+/// the pixel budget; `path` names the file in errors and gives the format when the content
+/// does not.
+pub(crate) fn decode_dynamic_bytes(bytes: &[u8], path: &Path) -> Result<DynamicImage> {
+    let (decoder, format) = open_raster(bytes, path)?;
+    decode_raster(decoder, format, path)
+}
+
+/// A decoder for raster bytes whose header has been read and whose declared size fits the
+/// pixel budget; nothing of the pixels is decoded yet.
+pub(crate) fn open_raster<'a>(
+    bytes: &'a [u8],
+    path: &Path,
+) -> Result<(impl ImageDecoder + 'a, ImageFormat)> {
+    let mut reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
     if reader.format().is_none()
@@ -142,8 +185,46 @@ pub(crate) fn decode_dynamic(path: &Path) -> Result<DynamicImage> {
             "unrecognised image format (readable: PNG, JPEG, PPM/PGM, TIFF, EXR, NPY, PFM)",
         ));
     };
-    reader
-        .decode()
+    // The decoders' own allocation guard, set to what the pixel budget can need (16 bytes per
+    // pixel: RGBA f32) plus room for their working buffers.
+    let mut limits = Limits::default();
+    limits.max_alloc = Some(
+        budget::max_pixels()
+            .saturating_mul(16)
+            .saturating_add(64 << 20),
+    );
+    reader.limits(limits);
+    if format == ImageFormat::Tiff {
+        raster_guard::check_tiff(bytes, path)?;
+    }
+    let decoder = reader
+        .into_decoder()
+        .map_err(|e| Error::format(path, format!("cannot decode as {format:?}: {e}")))?;
+    let (w, h) = decoder.dimensions();
+    let channels = decoder.color_type().channel_count();
+    if w == 0 || h == 0 {
+        return Err(Error::format(
+            path,
+            format!("{format:?} image declares an empty size {w}x{h}"),
+        ));
+    }
+    budget::check_pixels(
+        path,
+        &format!("{format:?} image"),
+        u64::from(w),
+        u64::from(h),
+        u64::from(channels),
+    )?;
+    Ok((decoder, format))
+}
+
+/// Decodes the pixels of an opened raster (see [`open_raster`]).
+pub(crate) fn decode_raster(
+    decoder: impl ImageDecoder,
+    format: ImageFormat,
+    path: &Path,
+) -> Result<DynamicImage> {
+    DynamicImage::from_decoder(decoder)
         .map_err(|e| Error::format(path, format!("cannot decode as {format:?}: {e}")))
 }
 
@@ -415,5 +496,55 @@ mod tests {
         let e = read_image_pair(&a, &b).unwrap_err().to_string();
         assert!(e.contains("a.png") && e.contains("b.png"), "{e}");
         assert!(read_image_pair(&a, &a).is_ok());
+    }
+
+    #[test]
+    fn empty_and_over_budget_rasters_are_refused_before_decoding() {
+        // Fuzzing find: a PGM declaring width 0 decoded to an image with no pixels.
+        let e = decode_image(b"P5\n0 1\n255\n", Path::new("z.pgm"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("z.pgm") && e.contains("empty"), "{e}");
+        // 16000x16000 declared by a 20-byte file: refused from the header.
+        let e = decode_image(b"P5\n16000 16000\n255\n\0\0", Path::new("big.pgm"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("big.pgm") && e.contains("16000x16000") && e.contains("--max-pixels"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn float_images_need_one_or_three_channels() {
+        use crate::io::{write_exr, write_flow_exr};
+        use crate::types::Flow;
+        let dir = tempfile::tempdir().unwrap();
+        // A flow EXR (u, v) given as an image: the message is about images, not PSFs.
+        let p = dir.path().join("flow.exr");
+        write_flow_exr(&p, &Flow::zeros(3, 4)).unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("flow.exr")
+                && e.contains("an image needs 1 channel")
+                && e.contains("[u, v]")
+                && e.contains("flow field"),
+            "{e}"
+        );
+        let p = dir.path().join("four.exr");
+        write_exr(&p, &ramp(4, 2, 3)).unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(e.contains("[C0, C1, C2, C3]"), "{e}");
+        // .npy: two channels are refused, a fourth (alpha) is dropped.
+        let p = dir.path().join("two.npy");
+        write_npy(&p, &ramp(2, 2, 5)).unwrap();
+        let e = read_image(&p).unwrap_err().to_string();
+        assert!(e.contains("two.npy") && e.contains("2 channels"), "{e}");
+        let p = dir.path().join("rgba.npy");
+        let im = ramp(4, 2, 5);
+        write_npy(&p, &im).unwrap();
+        let back = read_image(&p).unwrap();
+        assert_eq!(back.shape(), (3, 2, 5));
+        assert_eq!(back.data(), &im.data()[..30]);
     }
 }

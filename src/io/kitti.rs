@@ -3,10 +3,11 @@
 use std::io::Cursor;
 use std::path::Path;
 
-use image::{DynamicImage, ImageBuffer, ImageFormat};
+use image::{ColorType, DynamicImage, ImageBuffer, ImageDecoder, ImageFormat};
 
-use super::atomic::write_bytes_atomic;
-use super::image::decode_dynamic;
+use super::atomic::{read_bytes, write_bytes_atomic};
+use super::flow_file::is_unknown;
+use super::image::{decode_raster, open_raster};
 use crate::error::{Error, Result};
 use crate::types::Flow;
 
@@ -14,9 +15,24 @@ const OFFSET: f32 = 32768.0;
 const SCALE: f32 = 64.0;
 
 /// Reads a KITTI flow PNG. Returns the flow (NaN where invalid) and the validity mask
-/// (row-major, `true` where `B > 0`). 8-bit or non-RGB PNGs are rejected.
+/// (row-major, `true` where `B > 0`). 8-bit or non-RGB PNGs are rejected from their header,
+/// and the declared size is checked against the pixel budget, before decoding.
 pub fn read_kitti_flow(path: &Path) -> Result<(Flow, Vec<bool>)> {
-    let img = decode_dynamic(path)?;
+    decode_kitti_flow(&read_bytes(path)?, path)
+}
+
+/// Decodes the bytes of a KITTI flow PNG as [`read_kitti_flow`] does; `path` is used only in
+/// error messages.
+pub fn decode_kitti_flow(bytes: &[u8], path: &Path) -> Result<(Flow, Vec<bool>)> {
+    let (decoder, format) = open_raster(bytes, path)?;
+    let color = decoder.color_type();
+    if color != ColorType::Rgb16 {
+        return Err(Error::format(
+            path,
+            format!("a KITTI flow PNG must be 16-bit RGB, found {color:?}"),
+        ));
+    }
+    let img = decode_raster(decoder, format, path)?;
     let DynamicImage::ImageRgb16(buf) = img else {
         return Err(Error::format(
             path,
@@ -49,8 +65,9 @@ fn encode_component(x: f32) -> u16 {
     (x * SCALE + OFFSET).round().clamp(0.0, 65535.0) as u16
 }
 
-/// Writes a KITTI flow PNG atomically. Vectors with a non-finite component are written as
-/// invalid (`B = 0`); others are clamped to the representable range and marked valid.
+/// Writes a KITTI flow PNG atomically. Unknown vectors (a component non-finite or of magnitude
+/// `>= 1e9`, see [`is_unknown`]) are written as invalid (`B = 0`); others are clamped to the
+/// representable range and marked valid.
 pub fn write_kitti_flow(path: &Path, flow: &Flow) -> Result<()> {
     let (w, h) = (flow.width(), flow.height());
     if w == 0 || h == 0 || w > u32::MAX as usize || h > u32::MAX as usize {
@@ -61,7 +78,7 @@ pub fn write_kitti_flow(path: &Path, flow: &Flow) -> Result<()> {
     }
     let mut raw = Vec::with_capacity(3 * w * h);
     for (&a, &b) in flow.u().iter().zip(flow.v()) {
-        if a.is_finite() && b.is_finite() {
+        if !is_unknown(a, b) {
             raw.extend_from_slice(&[encode_component(a), encode_component(b), 1]);
         } else {
             raw.extend_from_slice(&[0, 0, 0]);

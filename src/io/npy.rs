@@ -7,6 +7,7 @@
 use std::path::Path;
 
 use super::atomic::{read_bytes, write_bytes_atomic};
+use super::budget;
 use crate::error::{Error, Result};
 use crate::types::Image;
 
@@ -94,7 +95,8 @@ fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
     Some(rest[..end].trim())
 }
 
-/// Reads a `.npy` array as an image (see the module documentation for shapes and dtypes).
+/// Reads a `.npy` array as an image (see the module documentation for shapes and dtypes). The
+/// declared shape is checked against the pixel budget ([`super::budget`]) before decoding.
 pub fn read_npy(path: &Path) -> Result<Image> {
     let bytes = read_bytes(path)?;
     decode_npy(&bytes, path)
@@ -175,10 +177,15 @@ pub fn decode_npy(bytes: &[u8], path: &Path) -> Result<Image> {
             )));
         }
     };
+    if c == 0 || h == 0 || w == 0 {
+        return Err(fail(format!(
+            "empty .npy array of shape {shape:?}: an image needs at least one pixel"
+        )));
+    }
+    budget::check_pixels(path, ".npy array", w as u64, h as u64, c as u64)?;
     let n = c
         .checked_mul(h)
         .and_then(|v| v.checked_mul(w))
-        .filter(|&n| n <= 2_000_000_000)
         .ok_or_else(|| fail(format!(".npy shape {shape:?} is implausibly large")))?;
     let payload = &bytes[start + len..];
     let need = n * dtype.size();
@@ -393,5 +400,26 @@ mod tests {
         );
         f.truncate(20);
         assert!(e(&f).contains("header"));
+    }
+
+    #[test]
+    fn empty_shapes_and_budget_are_refused() {
+        // Fuzzing find: a shape with a zero side decoded to an empty image (Ok with no pixels).
+        for shape in ["(0, 5)", "(5, 0)", "(0, 4, 4)", "(4, 4, 0)"] {
+            let dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
+            let e = dec(&npy(1, &dict, &[])).unwrap_err().to_string();
+            assert!(e.contains("empty") && e.contains("t.npy"), "{shape}: {e}");
+        }
+        // A header declaring 16000x16000 is refused by the pixel budget, not by its length.
+        let f = npy(
+            1,
+            "{'descr': '<f4', 'fortran_order': False, 'shape': (16000, 16000), }",
+            &[],
+        );
+        let e = dec(&f).unwrap_err().to_string();
+        assert!(
+            e.contains("16000x16000") && e.contains("--max-pixels"),
+            "{e}"
+        );
     }
 }

@@ -7,25 +7,32 @@
 use std::path::Path;
 
 use super::atomic::{read_bytes, write_bytes_atomic};
+use super::budget;
+use super::flow_file::unknown_to_nan;
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
 
-/// Largest width or height accepted when reading.
-const MAX_SIDE: usize = 100_000;
-/// Largest pixel count accepted when reading.
-const MAX_PIXELS: usize = 500_000_000;
+/// Largest width or height that parses (the pixel budget then bounds W·H).
+const MAX_SIDE: usize = 1 << 31;
 
 /// Reads a PFM file as an image `[C, H, W]` (C = 1 for `Pf`, 3 for `PF`), top row first.
-/// Samples are returned as stored (PFM is linear float; no scaling is applied).
+/// Samples are returned as stored (PFM is linear float; no scaling is applied). The declared
+/// size is checked against the pixel budget ([`super::budget`]) before decoding.
 pub fn read_pfm(path: &Path) -> Result<Image> {
     let bytes = read_bytes(path)?;
     decode_pfm(&bytes, path)
 }
 
 /// Reads a PFM flow file (e.g. FlyingThings3D): a 3-channel `PF` whose first two channels are
-/// u and v; the third is ignored. Grey `Pf` files are rejected.
+/// u and v; the third is ignored. Grey `Pf` files are rejected. Unknown vectors (a component
+/// non-finite or of magnitude `>= 1e9`) become NaN.
 pub fn read_pfm_flow(path: &Path) -> Result<Flow> {
-    let im = read_pfm(path)?;
+    decode_pfm_flow(&read_bytes(path)?, path)
+}
+
+/// Decodes PFM flow bytes as [`read_pfm_flow`] does; `path` is used only in error messages.
+pub fn decode_pfm_flow(bytes: &[u8], path: &Path) -> Result<Flow> {
+    let im = decode_pfm(bytes, path)?;
     if im.channels() < 2 {
         return Err(Error::format(
             path,
@@ -36,10 +43,35 @@ pub fn read_pfm_flow(path: &Path) -> Result<Flow> {
         ));
     }
     let (h, w) = (im.height(), im.width());
-    let mut data = Vec::with_capacity(2 * h * w);
-    data.extend_from_slice(im.plane(0));
-    data.extend_from_slice(im.plane(1));
+    let mut data = im.into_vec();
+    data.truncate(2 * h * w);
+    unknown_to_nan(&mut data);
     Flow::from_vec(h, w, data)
+}
+
+/// Writes a flow field as FlyingThings3D stores it, atomically: colour PFM (`PF`), channels
+/// u, v and a zero third, little endian (scale -1.0), rows bottom to top; unknown (NaN)
+/// vectors are written as NaN. RAFT's `readPFM` reads it back (flipping the rows and keeping
+/// the first two channels).
+pub fn write_pfm_flow(path: &Path, flow: &Flow) -> Result<()> {
+    let (h, w) = (flow.height(), flow.width());
+    if h == 0 || w == 0 {
+        return Err(Error::invalid(
+            format!("flow for {}", path.display()),
+            format!("cannot write an empty {w}x{h} flow as PFM"),
+        ));
+    }
+    let mut out = Vec::with_capacity(32 + 12 * h * w);
+    out.extend_from_slice(format!("PF\n{w} {h}\n-1.0\n").as_bytes());
+    for y in (0..h).rev() {
+        let (u, v) = (&flow.u()[y * w..][..w], &flow.v()[y * w..][..w]);
+        for (a, b) in u.iter().zip(v) {
+            out.extend_from_slice(&a.to_le_bytes());
+            out.extend_from_slice(&b.to_le_bytes());
+            out.extend_from_slice(&0.0f32.to_le_bytes());
+        }
+    }
+    write_bytes_atomic(path, &out)
 }
 
 /// Writes a 1-channel (`Pf`) or 3-channel (`PF`) image as little-endian PFM (scale -1),
@@ -163,12 +195,7 @@ pub fn decode_pfm(bytes: &[u8], path: &Path) -> Result<Image> {
                 format!("PFM header: scale must be a non-zero number, found {t:?}"),
             )
         })?;
-    if w * h > MAX_PIXELS {
-        return Err(Error::format(
-            path,
-            format!("PFM size {w}x{h} is implausibly large"),
-        ));
-    }
+    budget::check_pixels(path, "PFM image", w as u64, h as u64, channels as u64)?;
     // Exactly one whitespace byte separates the header from the data.
     match bytes.get(hd.pos) {
         Some(b) if b.is_ascii_whitespace() => hd.pos += 1,
@@ -297,5 +324,64 @@ mod tests {
         assert!(e(b"Pf\n2 1\n-1\n\0\0\0\0").contains("truncated"));
         assert!(e(b"Pf\n1 1\n-1\n\0\0\0\0\x01").contains("oversized"));
         assert!(e(b"Pf\n1").contains("height"));
+    }
+
+    #[test]
+    fn flow_is_written_as_flyingthings3d_stores_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f.pfm");
+        let (h, w) = (3, 4);
+        let mut f =
+            Flow::from_vec(h, w, (0..2 * h * w).map(|i| i as f32 * 0.5 - 3.0).collect()).unwrap();
+        f.set(1, 2, f32::NAN, f32::NAN);
+        f.set(0, 1, 7.25, -1.5);
+        write_pfm_flow(&p, &f).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        // RAFT's readPFM: header line "PF", then "W H", then the scale (negative: little endian).
+        let header = b"PF\n4 3\n-1.0\n";
+        assert!(bytes.starts_with(header));
+        assert_eq!(bytes.len(), header.len() + 4 * 3 * h * w);
+        // Pixel (row 0, column 1) is stored in the last row (rows go bottom to top), as
+        // (u, v, 0) little-endian f32.
+        let at = header.len() + 12 * ((h - 1 - 0) * w + 1);
+        let word = |i: usize| f32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+        assert_eq!((word(at), word(at + 4), word(at + 8)), (7.25, -1.5, 0.0));
+        // Unknown stays NaN in the file, and everything round-trips.
+        let at = header.len() + 12 * ((h - 1 - 1) * w + 2);
+        assert!(word(at).is_nan() && word(at + 4).is_nan() && word(at + 8) == 0.0);
+        let back = read_pfm_flow(&p).unwrap();
+        assert_eq!(back.valid_mask(), f.valid_mask());
+        for (a, b) in back.data().iter().zip(f.data()) {
+            assert!(a == b || (a.is_nan() && b.is_nan()));
+        }
+        assert!(write_pfm_flow(&dir.path().join("e.pfm"), &Flow::zeros(0, 2)).is_err());
+        assert!(!dir.path().join("e.pfm").exists());
+    }
+
+    #[test]
+    fn unknown_flow_is_nan_in_both_components() {
+        let mut b = b"PF\n4 1\n-1.0\n".to_vec();
+        for v in [
+            f32::NAN,
+            1.0,
+            0.0,
+            2.0,
+            f32::NEG_INFINITY,
+            0.0,
+            1e9,
+            0.0,
+            0.0,
+            -0.5,
+            0.25,
+            9.0,
+        ] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        let f = decode_pfm_flow(&b, Path::new("u.pfm")).unwrap();
+        for x in 0..3 {
+            let (u, v) = f.get(0, x);
+            assert!(u.is_nan() && v.is_nan(), "pixel {x}: ({u}, {v})");
+        }
+        assert_eq!(f.get(0, 3), (-0.5, 0.25));
     }
 }
