@@ -5,8 +5,13 @@ pub mod clip;
 pub mod config;
 pub mod log;
 pub mod param_ids;
+pub mod resume;
+pub mod save;
 pub mod schedule;
+pub mod setup;
+pub mod step;
 pub mod trainer;
+pub mod validate;
 
 pub use config::TrainConfig;
 pub use trainer::{TrainOptions, TrainSummary, train};

@@ -1,0 +1,155 @@
+//! Setting a run up (Note S11): the crop checked against the images, the network (initial
+//! weights a function of the seed, parameter ids from their paths, or `--init` weights), the
+//! AdamW optimiser, the state restored from a checkpoint, and the run folder with its
+//! `config.json` and log.
+
+use burn::optim::{AdamWConfig, ModuleOptimizer};
+use burn::prelude::*;
+use burn::store::ModuleRecord;
+use burn::tensor::Bytes;
+
+use super::checkpoint::Loaded;
+use super::config::TrainConfig;
+use super::log::TrainLog;
+use super::trainer::TrainOptions;
+use crate::error::{Error, Result};
+use crate::flow::data::FlowDataset;
+use crate::flow::model::{Mms, MmsConfig};
+use crate::flow::weights;
+use crate::rng;
+
+/// A run in progress: the network and optimiser with what has been recorded so far.
+pub struct Run {
+    /// The autodiff device the run trains on.
+    pub device: Device,
+    pub model: Mms,
+    pub optim: ModuleOptimizer,
+    /// The first step of this session.
+    pub start: usize,
+    pub best_val: Option<f64>,
+    /// Training time over all sessions.
+    pub seconds: f64,
+    pub last_loss: Option<f64>,
+    pub log: TrainLog,
+    pub parameters: usize,
+}
+
+/// Fails early on images smaller than the crop.
+pub fn check_crop(
+    train_set: &FlowDataset,
+    config: &TrainConfig,
+    opts: &TrainOptions,
+) -> Result<()> {
+    let (a, _, _) = train_set.load(0)?;
+    if a.height() < config.crop[0] || a.width() < config.crop[1] {
+        return Err(Error::invalid(
+            "train.crop",
+            format!(
+                "{:?} is larger than the {}x{} images of {}",
+                config.crop,
+                a.height(),
+                a.width(),
+                opts.data.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The network and optimiser of a new run, or of `existing` restored, starting at `start`; the
+/// run folder written.
+pub fn start(
+    config: &TrainConfig,
+    model_config: &MmsConfig,
+    existing: Option<Loaded>,
+    start: usize,
+    opts: &TrainOptions,
+) -> Result<Run> {
+    let device = opts.device.clone().autodiff();
+    let mut model = network(config, model_config, &device, opts)?;
+    let mut optim = AdamWConfig::new()
+        .with_weight_decay(config.weight_decay as f32)
+        .with_epsilon(config.epsilon as f32)
+        .init();
+    let (mut best_val, mut seconds, mut last_loss) = (None, 0.0, None);
+    if let Some((state, model_bytes, optim_bytes)) = existing {
+        let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
+            .map_err(|e| record_error("checkpoint model", e))?;
+        model = model
+            .try_load_record(record)
+            .map_err(|e| record_error("checkpoint model", e))?;
+        optim = optim
+            .from_bytes(Bytes::from_bytes_vec(optim_bytes))
+            .map_err(|e| record_error("checkpoint optimiser", e))?;
+        best_val = state.best_val_epe;
+        seconds = state.train_seconds;
+        last_loss = state.last_loss;
+    }
+    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    let run_json = serde_json::json!({"train": config, "model": model_config, "data": opts.data});
+    crate::io::write_bytes_atomic(
+        &opts.out.join("config.json"),
+        serde_json::to_string_pretty(&run_json)
+            .unwrap_or_default()
+            .as_bytes(),
+    )?;
+    let log = TrainLog::open(&opts.out.join("log.csv"), start)?;
+    let parameters = weights::parameter_count(&model);
+    Ok(Run {
+        device,
+        model,
+        optim,
+        start,
+        best_val,
+        seconds,
+        last_loss,
+        log,
+        parameters,
+    })
+}
+
+/// An error of a checkpoint's record.
+pub fn record_error(what: &str, e: impl std::fmt::Display) -> Error {
+    Error::invalid(what, e.to_string())
+}
+
+/// The initial network: seeded, or the `--init` weights (not with `--resume`).
+fn network(
+    config: &TrainConfig,
+    model_config: &MmsConfig,
+    device: &Device,
+    opts: &TrainOptions,
+) -> Result<Mms> {
+    // The initial weights are a function of the seed too, so two runs of one config agree.
+    device.seed(rng::derive(config.seed, &[rng::purpose::TRAIN, u64::MAX]));
+    // Ids from parameter paths, so that checkpoints of equal runs are equal files.
+    let mut model = super::param_ids::ids_from_paths(Mms::new(model_config, device));
+    let Some(init) = &opts.init else {
+        return Ok(model);
+    };
+    if opts.resume {
+        return Err(Error::invalid(
+            "--init",
+            "cannot be combined with --resume (the checkpoint already holds the weights)",
+        ));
+    }
+    let bytes = crate::io::read_bytes(init)?;
+    let stored = weights::read_config(&bytes, init)?;
+    if stored != *model_config {
+        return Err(Error::invalid(
+            "--init",
+            format!(
+                "{} holds a {} network, but the run trains {}",
+                init.display(),
+                stored.name,
+                model_config.name
+            ),
+        ));
+    }
+    let mut store = burn::store::SafetensorsStore::from_bytes(Some(bytes))
+        .validate(true)
+        .allow_partial(false);
+    burn::store::ModuleSnapshot::load_from(&mut model, &mut store)
+        .map_err(|e| Error::format(init, format!("cannot load the weights: {e}")))?;
+    Ok(model)
+}
