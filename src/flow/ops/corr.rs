@@ -223,22 +223,37 @@ mod tests {
 
     fn random_case(case: u64, dev: &Device) -> Case {
         let mut r = cases("corr vs tensor form", case);
-        let (b, c, h, w) = (
+        let shape = [
             r.random_range(1..=2),
             r.random_range(1..=6),
             r.random_range(1..=8),
             r.random_range(1..=9),
-        );
-        let reach = h.max(w) as f32 + 8.0;
+        ];
+        let reach = shape[2].max(shape[3]) as f32 + 8.0;
+        let (levels, radius) = (r.random_range(1..=4), r.random_range(1..=3));
+        fixed_case(case, shape, (-reach, 2.0 * reach), levels, radius, dev)
+    }
+
+    /// Features of `shape`, positions uniform in `range`.
+    fn fixed_case(
+        seed: u64,
+        shape: [usize; 4],
+        range: (f32, f32),
+        levels: usize,
+        radius: usize,
+        dev: &Device,
+    ) -> Case {
+        let mut r = cases("corr features", seed);
+        let [b, _, h, w] = shape;
         let coords: Vec<f32> = (0..b * 2 * h * w)
-            .map(|_| r.random_range(-reach..2.0 * reach))
+            .map(|_| r.random_range(range.0..range.1))
             .collect();
         Case {
-            f1: random(&mut r, [b, c, h, w], 1.0, dev),
-            f2: random(&mut r, [b, c, h, w], 1.0, dev),
+            f1: random(&mut r, shape, 1.0, dev),
+            f2: random(&mut r, shape, 1.0, dev),
             coords: Tensor::from_data(TensorData::new(coords, [b, 2, h, w]), dev),
-            levels: r.random_range(1..=4),
-            radius: r.random_range(1..=3),
+            levels,
+            radius,
         }
     }
 
@@ -247,14 +262,19 @@ mod tests {
     #[test]
     fn host_lookup_matches_the_tensor_form() {
         let dev = Device::flex();
-        for case in 0..30 {
+        // The former fixed case: 3 levels, radius 2, positions from −12 to +20 px.
+        let fixed = fixed_case(1000, [2, 5, 6, 9], (-12.0, 20.0), 3, 2, &dev);
+        for (case, c) in (0..30)
+            .map(|i| (i, random_case(i, &dev)))
+            .chain([(1000, fixed)])
+        {
             let Case {
                 f1,
                 f2,
                 coords,
                 levels,
                 radius,
-            } = random_case(case, &dev);
+            } = c;
             let host = corr_pyramid(f1.clone(), f2.clone(), levels);
             assert!(matches!(host.levels, Levels::Host(_)));
             let tensors = build(f1, f2, levels, Route::Burn);
@@ -270,14 +290,18 @@ mod tests {
     #[test]
     fn training_lookup_matches_the_tensor_form_and_its_gradients() {
         let dev = Device::flex().autodiff();
-        for case in 0..16 {
+        let fixed = fixed_case(1001, [2, 4, 6, 8], (-6.0, 14.0), 3, 2, &dev);
+        for (case, c) in (0..16)
+            .map(|i| (i, random_case(i, &dev)))
+            .chain([(1001, fixed)])
+        {
             let Case {
                 f1: f10,
                 f2: f20,
                 coords,
                 levels,
                 radius,
-            } = random_case(case, &dev);
+            } = c;
             let k2 = (2 * radius + 1).pow(2);
             let [b, _, h, w] = f10.dims();
             let mut r = cases("corr loss weights", case);

@@ -17,6 +17,7 @@ use burn::tensor::activation::{sigmoid, tanh};
 use burn::tensor::ops::ConvOptions;
 
 use super::conv::{bias_or_zeros, conv_layer, conv_stacked, conv2d};
+use super::route::{Operand, Route};
 use crate::flow::kernels::act::Act;
 
 /// The three gate convolutions `[Conv_z, Conv_r, Conv_q]`, each `[Ch, Ch + Cx, 3, 3]` with
@@ -28,7 +29,7 @@ pub type GruGates<'a> = [&'a Conv2d; 3];
 /// # Shapes
 /// `h`: `[B, Ch, H, W]`, `x`: `[B, Cx, H, W]` → `[B, Ch, H, W]`
 pub fn conv_gru(h: Tensor<4>, x: Tensor<4>, gates: GruGates<'_>) -> Tensor<4> {
-    if h.is_autodiff() {
+    if Route::of([Operand::of(&h), Operand::of(&x)]).is_autodiff() {
         stacked(h, x, gates)
     } else {
         split(h, x, gates)

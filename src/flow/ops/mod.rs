@@ -6,7 +6,7 @@
 //! | entry | file |
 //! |---|---|
 //! | [`conv_layer`], [`conv_stacked`], [`conv2d`]: convolution + bias + activation | [`conv`], [`conv_backward`] |
-//! | [`norm`]: instance and group normalisation | [`norm`](mod@norm) |
+//! | [`norm()`]: instance and group normalisation | [`norm`](mod@norm) |
 //! | [`corr_pyramid`], [`corr_lookup`]: correlation volume, pyramid and window lookup | [`corr`], [`corr_backward`] |
 //! | [`convex_upsample`]: convex 8× upsampling | [`upsample`] |
 //! | [`conv_gru`]: the ConvGRU's fused forms | [`gru`] |

@@ -202,23 +202,35 @@ mod tests {
     /// output differently.
     #[test]
     fn random_norms_match_burn_with_gradients() {
-        for case in 0..24 {
+        // Cases 24 and 25 are the former fixed ones: instance normalisation and 4 groups of 3
+        // channels on [2, 12, 5, 7], offset 2, with affine parameters.
+        for case in 0..26 {
             let mut r = cases("norm vs burn", case);
-            let groups = r.random_range(1..=4);
-            let c = groups * r.random_range(1..=4);
-            let shape = [
-                r.random_range(1..=2),
-                c,
-                r.random_range(1..=9),
-                r.random_range(1..=9),
-            ];
-            let offset = r.random_range(-3.0f32..3.0);
-            let instance = r.random_bool(0.5);
-            let affine = case % 3 != 2;
+            let (groups, shape, offset, instance, affine) = if case >= 24 {
+                let instance = case == 24;
+                (
+                    if instance { 12 } else { 4 },
+                    [2, 12, 5, 7],
+                    2.0,
+                    instance,
+                    true,
+                )
+            } else {
+                let groups = r.random_range(1..=4);
+                let shape = [
+                    r.random_range(1..=2),
+                    groups * r.random_range(1..=4),
+                    r.random_range(1..=9),
+                    r.random_range(1..=9),
+                ];
+                let offset = r.random_range(-3.0f32..3.0);
+                (groups, shape, offset, r.random_bool(0.5), case % 3 != 2)
+            };
+            let c = shape[1];
             for dev in [Device::flex(), Device::flex().autodiff()] {
                 let ad = dev.is_autodiff();
                 let track = |t: Tensor<1>| if ad { t.require_grad() } else { t };
-                let x0 = random(&mut r, shape, 2.0, &dev).add_scalar(offset);
+                let x0 = random(&mut r, shape, 3.0, &dev).add_scalar(offset);
                 let weights = random(&mut r, shape, 1.0, &dev);
                 let (mut inst, mut group) = (
                     InstanceNormConfig::new(c).with_affine(affine).init(&dev),
