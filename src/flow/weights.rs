@@ -89,7 +89,7 @@ pub fn canonical_safetensors(bytes: &[u8]) -> Result<Vec<u8>> {
     }
     let mut text =
         serde_json::to_vec(&Value::Object(out_header)).map_err(|e| bad(&e.to_string()))?;
-    while text.len() % 8 != 0 {
+    while !text.len().is_multiple_of(8) {
         text.push(b' ');
     }
     let mut out = Vec::with_capacity(8 + text.len() + out_data.len());

@@ -343,7 +343,7 @@ mod tests {
         assert_eq!(bytes.len(), header.len() + 4 * 3 * h * w);
         // Pixel (row 0, column 1) is stored in the last row (rows go bottom to top), as
         // (u, v, 0) little-endian f32.
-        let at = header.len() + 12 * ((h - 1 - 0) * w + 1);
+        let at = header.len() + 12 * ((h - 1) * w + 1);
         let word = |i: usize| f32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
         assert_eq!((word(at), word(at + 4), word(at + 8)), (7.25, -1.5, 0.0));
         // Unknown stays NaN in the file, and everything round-trips.

@@ -104,11 +104,12 @@ fn solve(
             return None;
         }
         a.swap(col, piv);
-        for r in 0..m {
+        let pivot_row = a[col].clone();
+        for (r, row) in a.iter_mut().enumerate() {
             if r != col {
-                let f = a[r][col] / a[col][col];
-                for c in col..=m {
-                    a[r][c] -= f * a[col][c];
+                let f = row[col] / pivot_row[col];
+                for (x, p) in row[col..=m].iter_mut().zip(&pivot_row[col..=m]) {
+                    *x -= f * p;
                 }
             }
         }

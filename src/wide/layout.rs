@@ -113,9 +113,9 @@ impl ArrayLayout {
             ));
         }
         for l in &self.lenses {
-            if !(l.tilt_deg.abs() + self.tile_fov_deg / 2.0 < 90.0)
-                || l.axis_px.iter().any(|v| !v.is_finite())
-            {
+            // Written so that NaN fails the check too.
+            let edge = l.tilt_deg.abs() + self.tile_fov_deg / 2.0;
+            if edge.is_nan() || edge >= 90.0 || l.axis_px.iter().any(|v| !v.is_finite()) {
                 return Err(Error::invalid(
                     "array.lenses",
                     format!("lens at {}°: its sector must stay within ±90°", l.tilt_deg),

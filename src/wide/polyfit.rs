@@ -181,7 +181,7 @@ mod tests {
         );
         let line: Vec<(f64, f64)> = (0..20).map(|i| (i as f64, 2.0 * i as f64)).collect();
         assert!(
-            Poly2::fit(&line, &vec![1.0; 20], 2).is_err(),
+            Poly2::fit(&line, &[1.0; 20], 2).is_err(),
             "collinear points"
         );
     }

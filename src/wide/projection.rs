@@ -17,7 +17,7 @@ pub fn direction(h: f64, v: f64) -> (f64, f64) {
 #[inline]
 pub fn angles(ax: f64, ay: f64) -> Option<(f64, f64)> {
     let g2 = 1.0 - ax * ax - ay * ay;
-    if !(g2 > 0.0) {
+    if g2.is_nan() || g2 <= 0.0 {
         return None;
     }
     Some((ax.atan2(g2.sqrt()), ay.asin()))

@@ -178,13 +178,13 @@ pub fn render_raw(layout: &ArrayLayout, wide: &Image) -> Result<Image> {
     Image::from_vec(c, h, w, data)
 }
 
+/// Dot centres `(x, y)` in stitched pixels, one list per tile.
+pub type DotCentres = Vec<Vec<(f64, f64)>>;
+
 /// The calibration target in stitched geometry: `per_side × per_side` dark dots per tile on
 /// white, at the centres of a regular lattice, anti-aliased; returns the image and the dot
 /// centres `(x, y)` (stitched pixels), tile by tile.
-pub fn dot_grid_target(
-    layout: &ArrayLayout,
-    per_side: usize,
-) -> Result<(Image, Vec<Vec<(f64, f64)>>)> {
+pub fn dot_grid_target(layout: &ArrayLayout, per_side: usize) -> Result<(Image, DotCentres)> {
     if !(3..=40).contains(&per_side) {
         return Err(Error::invalid(
             "grid",
