@@ -289,23 +289,36 @@ fn leaving_and_reentering_still_objects_and_bad_flows() {
     );
     assert!(!out.join("plot_id1.png").exists(), "--no-plots");
 
-    // A flow with a NaN vector: a clear error naming the file, no output.
+    // A flow with an unknown (NaN) vector: an invalid pixel, tracking goes on.
     let mut f = Flow::zeros(80, 120);
     f.set(3, 4, f32::NAN, 0.0);
     pins::io::write_flo(&flows.join("0040.flo"), &f).unwrap();
     let x = d.path().join("x");
-    let err = failed(&pins(&[
+    ok(&pins(&[
         "track",
         "--flows",
         flows.to_str().unwrap(),
         "--out",
         x.to_str().unwrap(),
+        "--no-plots",
+    ]));
+    assert!(x.join("tracks.json").is_file());
+    // A truncated flow file: a clear error naming the file, no output.
+    let bytes = std::fs::read(flows.join("0040.flo")).unwrap();
+    std::fs::write(flows.join("0040.flo"), &bytes[..100]).unwrap();
+    let y = d.path().join("y");
+    let err = failed(&pins(&[
+        "track",
+        "--flows",
+        flows.to_str().unwrap(),
+        "--out",
+        y.to_str().unwrap(),
     ]));
     assert!(
-        err.contains("0040.flo") && err.contains("non-finite"),
+        err.contains("0040.flo") && err.contains("truncated"),
         "{err}"
     );
-    assert!(!x.join("tracks.json").exists());
+    assert!(!y.join("tracks.json").exists());
     // A bad clip config names the key.
     let cfg = d.path().join("clip.json");
     std::fs::write(&cfg, r#"{"scene": {"frames": 1}}"#).unwrap();
