@@ -153,8 +153,12 @@ mod tests {
         g.set(1, 2, -1.0, 0.0);
         let r = regions(&g, 0.0, 1).unwrap();
         assert!(r[0].direction.is_none());
-        let mut bad = Flow::zeros(4, 4);
-        bad.set(2, 2, f32::NAN, 0.0);
-        assert!(regions(&bad, 0.5, 1).is_err());
+        // An unknown vector is not moving; a bad threshold is an error.
+        let mut unknown = Flow::zeros(4, 4);
+        unknown.set(2, 2, f32::NAN, 0.0);
+        assert!(regions(&unknown, 0.5, 1).unwrap().is_empty());
+        for t in [-1.0, f64::NAN, f64::INFINITY] {
+            assert!(regions(&f, t, 1).is_err(), "{t}");
+        }
     }
 }
