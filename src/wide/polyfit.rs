@@ -16,6 +16,9 @@ pub struct Poly2 {
     pub coefficients: Vec<f64>,
 }
 
+/// Highest polynomial order a calibration may hold.
+pub const MAX_ORDER: usize = 10;
+
 /// Number of monomials of total degree ≤ `order`.
 pub fn terms(order: usize) -> usize {
     (order + 1) * (order + 2) / 2
@@ -138,6 +141,40 @@ impl Poly2 {
     }
 
     /// Evaluates at `(x, y)`.
+    /// Checks a polynomial read from a file: an order up to [`MAX_ORDER`], exactly
+    /// `terms(order)` coefficients, finite numbers and non-zero scales. `what` names it.
+    pub fn validate(&self, what: &str) -> Result<()> {
+        if self.order > MAX_ORDER {
+            return Err(Error::invalid(
+                what,
+                format!("order {} is above {MAX_ORDER}", self.order),
+            ));
+        }
+        if self.coefficients.len() != terms(self.order) {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "order {} needs {} coefficients, found {}",
+                    self.order,
+                    terms(self.order),
+                    self.coefficients.len()
+                ),
+            ));
+        }
+        let finite = self
+            .coefficients
+            .iter()
+            .chain(&self.centre)
+            .all(|v| v.is_finite());
+        if !finite || self.scale.iter().any(|s| !s.is_finite() || *s == 0.0) {
+            return Err(Error::invalid(
+                what,
+                "coefficients, centre and scale must be finite and the scales non-zero",
+            ));
+        }
+        Ok(())
+    }
+
     pub fn eval(&self, x: f64, y: f64) -> f64 {
         let (u, v) = (
             (x - self.centre[0]) / self.scale[0],
@@ -158,6 +195,31 @@ impl Poly2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_polynomial_from_a_file_is_checked() {
+        let pts: Vec<(f64, f64)> = (0..30).map(|i| ((i % 6) as f64, (i / 6) as f64)).collect();
+        let vals: Vec<f64> = pts.iter().map(|p| p.0 + 2.0 * p.1).collect();
+        let p = Poly2::fit(&pts, &vals, 2).unwrap();
+        assert!(p.validate("fx").is_ok());
+        let mut q = p.clone();
+        q.order = 3;
+        assert!(
+            q.validate("fx")
+                .unwrap_err()
+                .to_string()
+                .contains("10 coefficients")
+        );
+        let mut q = p.clone();
+        q.scale[1] = 0.0;
+        assert!(q.validate("fx").is_err());
+        let mut q = p.clone();
+        q.coefficients[0] = f64::NAN;
+        assert!(q.validate("fx").is_err());
+        let mut q = p;
+        q.order = 1000;
+        assert!(q.validate("fx").is_err());
+    }
 
     #[test]
     fn recovers_a_polynomial_and_rejects_degenerate_fits() {

@@ -32,6 +32,10 @@ impl Stitcher {
                 ),
             ));
         }
+        for (k, l) in calib.lenses.iter().enumerate() {
+            l.fx.validate(&format!("calibration lens {k} fx"))?;
+            l.fy.validate(&format!("calibration lens {k} fy"))?;
+        }
         let [h, w] = calib.layout.wide_size();
         let n = calib.layout.tile_px;
         let map = (0..h * w)
