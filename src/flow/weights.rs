@@ -126,7 +126,8 @@ pub fn read_config(bytes: &[u8], what: &Path) -> Result<MmsConfig> {
         .ok_or_else(|| bad(format!("no {CONFIG_KEY} in the metadata")))?;
     let cfg: MmsConfig =
         serde_json::from_str(json).map_err(|e| bad(format!("model config: {e}")))?;
-    cfg.validate()?;
+    cfg.validate()
+        .map_err(|e| Error::format(what, format!("model config: {e}")))?;
     Ok(cfg)
 }
 
