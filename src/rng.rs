@@ -35,6 +35,8 @@ pub mod purpose {
     pub const TEXTURE: u64 = 4;
     pub const NOISE: u64 = 5;
     pub const TRAIN: u64 = 6;
+    /// Optional scene knobs, drawn apart from the geometry so old configs keep their scenes.
+    pub const VARIETY: u64 = 7;
 }
 
 #[cfg(test)]

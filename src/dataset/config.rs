@@ -77,6 +77,11 @@ impl GeneratorConfig {
         {
             *p = base.join(&*p);
         }
+        if let SceneSpec::Chairs(c) = &mut cfg.scene
+            && let Some(photos) = &mut c.photos
+        {
+            photos.resolve_paths(base);
+        }
         cfg.camera.resolve_paths(base);
         cfg.validate().map_err(|e| crate::io::in_config(path, e))?;
         Ok(cfg)

@@ -93,6 +93,7 @@ struct Rendered {
     flow: Option<Flow>,
     layers: Option<Vec<crate::scene::layered::LayerRecord>>,
     source: Option<String>,
+    draw: Option<crate::scene::ChairsDraw>,
 }
 
 /// The prepared generator: config, camera and (for dataset scenes) the discovered pairs.
@@ -155,10 +156,16 @@ impl Generator {
                 flow,
                 layers: Some(scene.records()),
                 source: None,
+                draw: None,
             })
         };
         match &self.config.scene {
-            SceneSpec::Chairs(c) => layered(c.build(seed)?),
+            SceneSpec::Chairs(c) => {
+                let (scene, draw) = c.build_recorded(seed)?;
+                let mut r = layered(scene)?;
+                r.draw = c.has_variety().then_some(draw);
+                Ok(r)
+            }
             SceneSpec::Rocket { step, channels } => layered(patterns::rocket(*step, *channels)),
             SceneSpec::Disc { radius, channels } => layered(patterns::disc(*radius, *channels)?),
             SceneSpec::Dataset { .. } => {
@@ -183,6 +190,7 @@ impl Generator {
                     flow,
                     layers: None,
                     source: Some(pair.name.clone()),
+                    draw: None,
                 })
             }
         }
@@ -237,6 +245,7 @@ impl Generator {
             flow: flow_stats,
             source: r.source,
             layers: r.layers,
+            scene_draw: r.draw,
         };
         meta.write(&meta_path)?;
         Ok(outcome)

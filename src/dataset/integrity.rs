@@ -299,6 +299,7 @@ mod tests {
             flow: None,
             source: None,
             layers: None,
+            scene_draw: None,
         };
         meta.write(&dir.join(SampleMeta::file_name(3))).unwrap();
         meta

@@ -69,6 +69,10 @@ pub struct SampleMeta {
     /// Shapes and poses of every layer, for procedural scenes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub layers: Option<Vec<LayerRecord>>,
+    /// The optional knobs a chairs scene drew (photo windows, still background, tone), for
+    /// configs that use them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_draw: Option<crate::scene::ChairsDraw>,
 }
 
 impl SampleMeta {

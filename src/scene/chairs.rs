@@ -1,5 +1,7 @@
 //! FlyingChairs-like procedural scenes: a textured background under a small global affine
-//! motion and textured blob sprites under independent translations, rotations and scalings.
+//! motion and textured blob sprites under independent translations, rotations and scalings,
+//! with the variety real cameras see as options: photographic textures, motions from sub-pixel
+//! to 100+ px, still backgrounds and objects, small sprites, dark and low-contrast scenes.
 
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -9,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
 use super::layered::{Fill, Layer, LayeredScene};
+use super::photos::{PhotoCrop, PhotoTextures};
 use super::shape::Shape;
 use super::texture::procedural;
 use crate::error::{Error, Result};
@@ -40,6 +43,46 @@ pub struct ChairsConfig {
     pub background_zoom: [f64; 2],
     /// Sub-samples per pixel side (anti-aliasing).
     pub supersample: usize,
+    /// Photographs as textures, mixed with the procedural ones (none by default).
+    pub photos: Option<PhotoTextures>,
+    /// How translation lengths are drawn, for sprites and background alike.
+    pub translation_law: TranslationLaw,
+    /// Shortest translation of the `log_uniform` law, pixels.
+    pub min_translation: f64,
+    /// Share of samples whose background stands still (a fixed camera).
+    pub still_background: f64,
+    /// Share of sprites that stand still.
+    pub still_sprites: f64,
+    /// Extra small sprites per sample, drawn on top of the others (Note S12's sizes).
+    pub small_sprites: [usize; 2],
+    /// Radius of the small sprites, pixels.
+    pub small_sprite_radius_px: [f64; 2],
+    /// Gain applied to every texture before the camera, drawn per sample.
+    pub brightness: [f64; 2],
+    /// Contrast about mid-grey applied to every texture before the camera, drawn per sample.
+    pub contrast: [f64; 2],
+}
+
+/// The law of translation lengths.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TranslationLaw {
+    /// Uniform over the disc of radius `max` (most translations near the largest).
+    #[default]
+    Disc,
+    /// Length log-uniform in `[min_translation, max]`, direction uniform: every octave of
+    /// motion, sub-pixel to large, is equally common (AutoFlow's lesson).
+    LogUniform,
+}
+
+/// What a sample drew beyond its layers' geometry, for its metadata.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChairsDraw {
+    pub still_background: bool,
+    pub brightness: f64,
+    pub contrast: f64,
+    /// Per layer, bottom to top: `null` for a procedural texture, else the photo window.
+    pub textures: Vec<Option<PhotoCrop>>,
 }
 
 impl Default for ChairsConfig {
@@ -57,6 +100,15 @@ impl Default for ChairsConfig {
             background_rotation_deg: 2.0,
             background_zoom: [0.97, 1.03],
             supersample: 3,
+            photos: None,
+            translation_law: TranslationLaw::Disc,
+            min_translation: 0.05,
+            still_background: 0.0,
+            still_sprites: 0.0,
+            small_sprites: [0, 0],
+            small_sprite_radius_px: [2.0, 10.0],
+            brightness: [1.0, 1.0],
+            contrast: [1.0, 1.0],
         }
     }
 }
@@ -114,6 +166,37 @@ impl ChairsConfig {
                 ));
             }
         }
+        if let Some(p) = &self.photos {
+            p.validate()?;
+        }
+        if !(self.min_translation.is_finite() && self.min_translation > 0.0) {
+            return Err(Error::invalid(
+                "scene.min_translation",
+                format!("must be finite and > 0, got {}", self.min_translation),
+            ));
+        }
+        for (name, v) in [
+            ("scene.still_background", self.still_background),
+            ("scene.still_sprites", self.still_sprites),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return Err(Error::invalid(name, format!("must be in [0, 1], got {v}")));
+            }
+        }
+        if self.small_sprites[0] > self.small_sprites[1] || self.small_sprites[1] > 256 {
+            return Err(Error::invalid(
+                "scene.small_sprites",
+                format!("expected min <= max <= 256, got {:?}", self.small_sprites),
+            ));
+        }
+        check_range(
+            "scene.small_sprite_radius_px",
+            self.small_sprite_radius_px,
+            0.5,
+            1000.0,
+        )?;
+        check_range("scene.brightness", self.brightness, 0.0, 10.0)?;
+        check_range("scene.contrast", self.contrast, 0.0, 10.0)?;
         if self.supersample == 0 || self.supersample > 8 {
             return Err(Error::invalid(
                 "scene.supersample",
@@ -125,23 +208,70 @@ impl ChairsConfig {
 
     /// Draws the scene for `seed` (a sample's own seed).
     pub fn build(&self, seed: u64) -> Result<LayeredScene> {
+        Ok(self.build_recorded(seed)?.0)
+    }
+
+    /// True when a knob beyond the original FlyingChairs recipe is on: such samples record
+    /// their [`ChairsDraw`] in their metadata.
+    pub fn has_variety(&self) -> bool {
+        self.photos.is_some()
+            || self.translation_law != TranslationLaw::Disc
+            || self.still_background > 0.0
+            || self.still_sprites > 0.0
+            || self.small_sprites[1] > 0
+            || self.brightness != [1.0, 1.0]
+            || self.contrast != [1.0, 1.0]
+    }
+
+    /// Draws the scene for `seed` and what it drew beyond the layers' geometry.
+    ///
+    /// The geometry comes from one random stream and every optional knob from a second one,
+    /// so a config without them draws exactly the scenes it always drew.
+    pub fn build_recorded(&self, seed: u64) -> Result<(LayeredScene, ChairsDraw)> {
         self.validate()?;
         let mut r = rng::stream(seed, &[rng::purpose::SCENE]);
+        let mut v = rng::stream(seed, &[rng::purpose::SCENE, rng::purpose::VARIETY]);
+        let library = match &self.photos {
+            Some(p) => Some(p.library()?),
+            None => None,
+        };
+        let brightness = uniform(&mut v, self.brightness);
+        let contrast = uniform(&mut v, self.contrast);
+        let still_background =
+            self.still_background > 0.0 && v.random::<f64>() < self.still_background;
+        let mut textures = Vec::new();
+        // A texture: procedural from `seed`, or (with the photos' probability) cut from a photo.
+        let mut texture = |v: &mut rng::Rng, seed: u64, h: usize, w: usize, scale: f32| {
+            let (mut img, crop) = match (&self.photos, &library) {
+                (Some(p), Some(lib)) if v.random::<f64>() < p.fraction => {
+                    let (img, crop) = p.cut(lib, v, self.channels, h, w);
+                    (img, Some(crop))
+                }
+                _ => (procedural(seed, self.channels, h, w, scale), None),
+            };
+            tone(&mut img, brightness, contrast);
+            textures.push(crop);
+            img
+        };
         let (w, h) = (self.width as f64, self.height as f64);
         let short = w.min(h);
         let mut layers = Vec::new();
 
         // Background: a texture a quarter larger than the frame, moved about the frame centre.
         let (tw, th) = ((w * 1.25).ceil() as usize, (h * 1.25).ceil() as usize);
-        let bg_tex = procedural(r.random(), self.channels, th, tw, short as f32);
+        let bg_tex = texture(&mut v, r.random(), th, tw, short as f32);
         let pose1 = Affine::translation(w / 2.0, h / 2.0);
         let centre_motion = {
-            let (dx, dy) = disc_sample(&mut r, self.background_translation);
+            let (dx, dy) = self.translation(&mut r, self.background_translation);
             let theta = r.random_range(-1.0..=1.0) * self.background_rotation_deg.to_radians();
             let zoom = uniform(&mut r, self.background_zoom);
-            Affine::translation(w / 2.0 + dx, h / 2.0 + dy)
-                .compose(&Affine::pose(0.0, 0.0, theta, zoom))
-                .compose(&Affine::translation(-w / 2.0, -h / 2.0))
+            if still_background {
+                Affine::IDENTITY
+            } else {
+                Affine::translation(w / 2.0 + dx, h / 2.0 + dy)
+                    .compose(&Affine::pose(0.0, 0.0, theta, zoom))
+                    .compose(&Affine::translation(-w / 2.0, -h / 2.0))
+            }
         };
         layers.push(Layer {
             shape: Shape::Full,
@@ -153,8 +283,19 @@ impl ChairsConfig {
         });
 
         let count = r.random_range(self.sprites[0]..=self.sprites[1]);
-        for _ in 0..count {
-            let radius = uniform(&mut r, self.sprite_radius) * short;
+        let small = if self.small_sprites[1] > 0 {
+            v.random_range(self.small_sprites[0]..=self.small_sprites[1])
+        } else {
+            0
+        };
+        for k in 0..count + small {
+            // The small sprites draw everything from the second stream.
+            let r = if k < count { &mut r } else { &mut v };
+            let radius = if k < count {
+                uniform(r, self.sprite_radius) * short
+            } else {
+                uniform(r, self.small_sprite_radius_px)
+            };
             let harmonics: Vec<(u32, f64, f64)> = (2..=5)
                 .map(|k| {
                     (
@@ -167,12 +308,15 @@ impl ChairsConfig {
             let shape = Shape::Blob { radius, harmonics };
             let bound = shape.bound_radius();
             let size = (2.0 * bound * 1.3).ceil().max(4.0) as usize + 2;
-            let tex = procedural(r.random(), self.channels, size, size, (2.0 * radius) as f32);
+            let tex_seed = r.random();
             let (x, y) = (r.random_range(-0.1..1.1) * w, r.random_range(-0.1..1.1) * h);
             let (theta, s) = (r.random_range(0.0..2.0 * PI), r.random_range(0.85..1.15));
-            let (dx, dy) = disc_sample(&mut r, self.max_translation);
+            let (dx, dy) = self.translation(r, self.max_translation);
             let dtheta = r.random_range(-1.0..=1.0) * self.max_rotation_deg.to_radians();
-            let ds = uniform(&mut r, self.scale_change);
+            let ds = uniform(r, self.scale_change);
+            let still = self.still_sprites > 0.0 && v.random::<f64>() < self.still_sprites;
+            let tex = texture(&mut v, tex_seed, size, size, (2.0 * radius) as f32);
+            let pose1 = Affine::pose(x, y, theta, s);
             layers.push(Layer {
                 shape,
                 fill: Fill::Texture {
@@ -180,18 +324,58 @@ impl ChairsConfig {
                     origin: (size as f64 / 2.0, size as f64 / 2.0),
                 },
                 poses: [
-                    Affine::pose(x, y, theta, s),
-                    Affine::pose(x + dx, y + dy, theta + dtheta, s * ds),
+                    pose1,
+                    if still {
+                        pose1
+                    } else {
+                        Affine::pose(x + dx, y + dy, theta + dtheta, s * ds)
+                    },
                 ],
             });
         }
-        Ok(LayeredScene {
-            width: self.width,
-            height: self.height,
-            channels: self.channels,
-            layers,
-            supersample: self.supersample,
-        })
+        let draw = ChairsDraw {
+            still_background,
+            brightness,
+            contrast,
+            textures,
+        };
+        Ok((
+            LayeredScene {
+                width: self.width,
+                height: self.height,
+                channels: self.channels,
+                layers,
+                supersample: self.supersample,
+            },
+            draw,
+        ))
+    }
+
+    /// A translation of at most `max` pixels under the configured law.
+    fn translation(&self, r: &mut rng::Rng, max: f64) -> (f64, f64) {
+        match self.translation_law {
+            TranslationLaw::Disc => disc_sample(r, max),
+            TranslationLaw::LogUniform => {
+                if max <= self.min_translation {
+                    return disc_sample(r, max);
+                }
+                let len = r.random_range(self.min_translation.ln()..=max.ln()).exp();
+                let phi = r.random_range(0.0..2.0 * PI);
+                (len * phi.cos(), len * phi.sin())
+            }
+        }
+    }
+}
+
+/// Gain and contrast about mid-grey, clamped to [0, 1]: the scene's own exposure and contrast
+/// before the camera.
+fn tone(img: &mut crate::types::Image, gain: f64, contrast: f64) {
+    if gain == 1.0 && contrast == 1.0 {
+        return;
+    }
+    let (g, c) = (gain as f32, contrast as f32);
+    for x in img.data_mut() {
+        *x = (g * (0.5 + c * (*x - 0.5))).clamp(0.0, 1.0);
     }
 }
 
@@ -213,6 +397,7 @@ fn disc_sample(r: &mut rng::Rng, max: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::Path;
 
     fn small() -> ChairsConfig {
         ChairsConfig {
@@ -271,6 +456,123 @@ mod tests {
         assert!(
             err_flow < 0.5 * err_zero,
             "warp {err_flow} vs zero-flow {err_zero}"
+        );
+    }
+
+    #[test]
+    fn a_still_camera_and_still_sprites_make_a_static_scene() {
+        let cfg = ChairsConfig {
+            still_background: 1.0,
+            still_sprites: 1.0,
+            ..small()
+        };
+        let (scene, draw) = cfg.build_recorded(4).unwrap();
+        assert!(draw.still_background);
+        assert!(scene.is_static());
+        // A still background alone: the flow is exactly zero wherever the background shows.
+        let cfg = ChairsConfig {
+            still_background: 1.0,
+            sprites: [1, 1],
+            sprite_radius: [0.1, 0.1],
+            ..small()
+        };
+        let flow = cfg.build(4).unwrap().flow().unwrap();
+        let zero = (0..48)
+            .flat_map(|y| (0..64).map(move |x| (y, x)))
+            .filter(|&(y, x)| flow.get(y, x) == (0.0, 0.0))
+            .count();
+        assert!(zero > 64 * 48 / 2, "{zero} still pixels");
+        assert!(flow.max_magnitude() > 0.0);
+    }
+
+    #[test]
+    fn the_log_uniform_law_spans_sub_pixel_to_large_motions() {
+        let cfg = ChairsConfig {
+            translation_law: TranslationLaw::LogUniform,
+            min_translation: 0.1,
+            max_translation: 128.0,
+            ..small()
+        };
+        let mut r = rng::stream(1, &[9]);
+        let lens: Vec<f64> = (0..4000)
+            .map(|_| {
+                let (x, y) = cfg.translation(&mut r, 128.0);
+                x.hypot(y)
+            })
+            .collect();
+        assert!(
+            lens.iter()
+                .all(|&l| (0.1 - 1e-9..=128.0 + 1e-9).contains(&l))
+        );
+        // Log-uniform: each of the ten octaves holds about a tenth of the draws.
+        let below_1 = lens.iter().filter(|&&l| l < 1.0).count() as f64 / 4000.0;
+        let above_32 = lens.iter().filter(|&&l| l > 32.0).count() as f64 / 4000.0;
+        let octave = 1.0 / (1280.0f64).log2();
+        assert!((below_1 - 10f64.log2() * octave).abs() < 0.04, "{below_1}");
+        assert!((above_32 - 2.0 * octave).abs() < 0.04, "{above_32}");
+    }
+
+    #[test]
+    fn knobs_are_drawn_apart_from_the_geometry() {
+        // Tone and still sprites change what is drawn, not where: the first frame's layer
+        // geometry is that of the plain config.
+        let plain = small();
+        let knobs = ChairsConfig {
+            still_sprites: 0.5,
+            brightness: [0.3, 0.6],
+            contrast: [0.5, 0.9],
+            ..small()
+        };
+        assert!(!plain.has_variety() && knobs.has_variety());
+        let (a, b) = (plain.build(8).unwrap(), knobs.build(8).unwrap());
+        let (ra, rb) = (a.records(), b.records());
+        assert_eq!(ra.len(), rb.len());
+        for (x, y) in ra.iter().zip(&rb) {
+            assert_eq!(x.poses[0], y.poses[0]);
+        }
+        // Darker and flatter, within [0, 1].
+        let (ia, ib) = (a.render(0).unwrap(), b.render(0).unwrap());
+        let mean = |d: &[f32]| d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64;
+        assert!(mean(ib.data()) < 0.75 * mean(ia.data()));
+        assert!(ib.data().iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+
+    #[test]
+    fn small_sprites_and_photo_textures_are_recorded() {
+        let photos = Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/photos/train");
+        let cfg = ChairsConfig {
+            sprites: [1, 1],
+            small_sprites: [3, 3],
+            small_sprite_radius_px: [3.0, 3.0],
+            photos: Some(PhotoTextures {
+                dirs: vec![photos],
+                fraction: 1.0,
+                ..PhotoTextures::default()
+            }),
+            ..small()
+        };
+        let (scene, draw) = cfg.build_recorded(2).unwrap();
+        assert_eq!(scene.layers.len(), 1 + 1 + 3);
+        assert_eq!(draw.textures.len(), 5);
+        assert!(draw.textures.iter().all(|t| t.is_some()));
+        for layer in &scene.layers[2..] {
+            assert!(matches!(layer.shape, Shape::Blob { radius, .. } if radius == 3.0));
+        }
+        assert_eq!(cfg.build_recorded(2).unwrap().1, draw);
+        let half = ChairsConfig {
+            photos: Some(PhotoTextures {
+                fraction: 0.5,
+                ..cfg.photos.clone().unwrap()
+            }),
+            small_sprites: [20, 20],
+            ..cfg.clone()
+        };
+        let textures = half.build_recorded(3).unwrap().1.textures;
+        let photo = textures.iter().filter(|t| t.is_some()).count();
+        assert!(
+            photo > 3 && photo < textures.len() - 3,
+            "{photo} of {}",
+            textures.len()
         );
     }
 

@@ -4,6 +4,7 @@ pub mod affine;
 pub mod chairs;
 pub mod layered;
 pub mod patterns;
+pub mod photos;
 pub mod readers;
 pub mod shape;
 pub mod texture;
@@ -11,6 +12,6 @@ pub mod trajectory;
 pub mod truth;
 
 pub use affine::Affine;
-pub use chairs::ChairsConfig;
+pub use chairs::{ChairsConfig, ChairsDraw, TranslationLaw};
 pub use layered::{Fill, Layer, LayeredScene};
 pub use shape::Shape;
