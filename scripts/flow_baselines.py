@@ -21,13 +21,22 @@ Timing: per method, one untimed warm-up call on the first pair, then every pair 
 (the flow call only, on the already grey images); ms_per_pair = total time / pairs.
 cv2.setNumThreads(--threads) is set before anything runs.
 
+Each method's scores are also given per pair (the pair's name is its NNNNN stem; ms is that
+pair's time), and the zero-flow baseline is scored the same way (its EPE is the mean ground-truth
+speed over the valid pixels, given per pair as mean_gt).
+
 Usage:
   python3 scripts/flow_baselines.py --data out/eval_data [--out peers.json] [--threads 1]
 Needs: pip install opencv-python-headless numpy
 
-Output JSON (the Rust side reads methods[].name, .epe and .ms_per_pair):
-  {"data": "...", "pairs": N, "methods": [{"name": "OpenCV DIS medium", "epe": .., "ae_deg": ..,
-   "px1": .., "px3": .., "px5": .., "ms_per_pair": ..}, ...]}
+Output JSON (`pins eval --peers` reads methods[].name, .epe and .ms_per_pair; `pins bench-real`
+reads the rest):
+  {"data": "...", "pairs": N, "opencv": "4.x", "threads": 1,
+   "methods": [{"name": "OpenCV DIS medium", "epe": .., "ae_deg": .., "px1": .., "px3": ..,
+                "px5": .., "ms_per_pair": ..,
+                "per_pair": [{"name": "00000", "pixels": .., "epe": .., "ae_deg": .., "px1": ..,
+                              "px3": .., "px5": .., "ms": ..}, ...]}, ...],
+   "zero_flow": {same fields as a method, ms 0; per_pair also has mean_gt}}
 """
 import argparse
 import glob
@@ -101,7 +110,7 @@ def find_pairs(data):
         for p in (img2, flo):
             if not os.path.isfile(p):
                 raise DataError(f"{img1} has no partner {os.path.basename(p)}")
-        pairs.append((img1, img2, flo))
+        pairs.append((os.path.basename(stem), img1, img2, flo))
     if not pairs:
         raise DataError(f"no NNNNN_img1.png / NNNNN_img2.png / NNNNN_flow.flo triples in {data}")
     return pairs
@@ -109,13 +118,13 @@ def find_pairs(data):
 
 def load_pairs(pairs):
     out = []
-    for img1, img2, flo in pairs:
+    for name, img1, img2, flo in pairs:
         g1, g2, gt = read_grey(img1), read_grey(img2), read_flo(flo)
         if g1.shape != g2.shape:
             raise DataError(f"{img1} is {g1.shape[1]}x{g1.shape[0]} but {img2} is {g2.shape[1]}x{g2.shape[0]}")
         if gt.shape[:2] != g1.shape:
             raise DataError(f"{flo} is {gt.shape[1]}x{gt.shape[0]} but {img1} is {g1.shape[1]}x{g1.shape[0]}")
-        out.append((g1, g2, gt))
+        out.append((name, g1, g2, gt))
     return out
 
 
@@ -147,6 +156,14 @@ class Sums:
         self.w3 += int((e < 3.0).sum())
         self.w5 += int((e < 5.0).sum())
 
+    def merge(self, o):
+        self.pixels += o.pixels
+        self.epe += o.epe
+        self.ae += o.ae
+        self.w1 += o.w1
+        self.w3 += o.w3
+        self.w5 += o.w5
+
     def scores(self):
         n = max(self.pixels, 1)
         return {"epe": self.epe / n, "ae_deg": self.ae / n,
@@ -172,17 +189,33 @@ METHODS = [
 
 def run_method(name, make, data):
     fn = make()
-    fn(data[0][0], data[0][1])  # untimed warm-up
-    sums, seconds = Sums(), 0.0
-    for i, (g1, g2, gt) in enumerate(data):
+    fn(data[0][1], data[0][2])  # untimed warm-up
+    sums, seconds, per_pair = Sums(), 0.0, []
+    for pair, g1, g2, gt in data:
         t0 = time.perf_counter()
         pred = fn(g1, g2)
-        seconds += time.perf_counter() - t0
+        dt = time.perf_counter() - t0
+        seconds += dt
         if pred is None:
-            raise DataError(f"{name}: no flow returned for pair {i}")
-        sums.add(np.asarray(pred, dtype=np.float32), gt, f"{name}, pair {i}")
-    row = {"name": name, **sums.scores(), "ms_per_pair": 1e3 * seconds / len(data)}
-    return row
+            raise DataError(f"{name}: no flow returned for pair {pair}")
+        one = Sums()
+        one.add(np.asarray(pred, dtype=np.float32), gt, f"{name}, pair {pair}")
+        sums.merge(one)
+        per_pair.append({"name": pair, "pixels": one.pixels, **one.scores(), "ms": 1e3 * dt})
+    return {"name": name, **sums.scores(), "ms_per_pair": 1e3 * seconds / len(data),
+            "per_pair": per_pair}
+
+
+def zero_flow(data):
+    """The zero-flow baseline; its per-pair EPE is the mean ground-truth speed (mean_gt)."""
+    sums, per_pair = Sums(), []
+    for pair, g1, _, gt in data:
+        one = Sums()
+        one.add(np.zeros(gt.shape, dtype=np.float32), gt, f"zero flow, pair {pair}")
+        sums.merge(one)
+        s = one.scores()
+        per_pair.append({"name": pair, "pixels": one.pixels, "mean_gt": s["epe"], **s, "ms": 0.0})
+    return {"name": "zero flow", **sums.scores(), "ms_per_pair": 0.0, "per_pair": per_pair}
 
 
 def table(rows):
@@ -206,21 +239,25 @@ def main():
     cv2.setNumThreads(args.threads)
     try:
         data = load_pairs(find_pairs(args.data))
-        h, w = data[0][0].shape
+        h, w = data[0][1].shape
         print(f"{len(data)} pairs ({w}x{h}) from {args.data}; OpenCV {cv2.__version__}, "
               f"{cv2.getNumThreads()} thread(s)", file=sys.stderr)
         rows = [run_method(name, make, data) for name, make in METHODS]
+        zero = zero_flow(data)
     except DataError as e:
         sys.exit(f"error: {e}")
-    print(table(rows), end="")
+    print(table(rows + [zero]), end="")
     if args.out:
-        doc = {"data": args.data, "pairs": len(data), "methods": rows}
+        doc = {"data": args.data, "pairs": len(data), "opencv": cv2.__version__,
+               "threads": cv2.getNumThreads(), "methods": rows, "zero_flow": zero}
         try:
             d = os.path.dirname(os.path.abspath(args.out))
             os.makedirs(d, exist_ok=True)
-            with open(args.out, "w") as f:
+            tmp = f"{args.out}.tmp{os.getpid()}"
+            with open(tmp, "w") as f:
                 json.dump(doc, f, indent=2)
                 f.write("\n")
+            os.replace(tmp, args.out)  # all or nothing
         except OSError as e:
             sys.exit(f"error: cannot write {args.out}: {e}")
         print(f"wrote {args.out}", file=sys.stderr)

@@ -12,8 +12,8 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use cli::array::{ArrayCommand, array};
 use cli::data::{BenchArgs, GenerateArgs, PsfArgs, SimulateArgs, bench, generate, psf, simulate};
 use cli::flow::{
-    BenchFlowArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs, bench_flow, eval, export, infer,
-    train,
+    BenchFlowArgs, BenchRealArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs, bench_flow,
+    bench_real, eval, export, infer, train,
 };
 use cli::optics::{CompareArgs, OpticsCommand, compare, optics};
 use cli::track::{TrackArgs, track};
@@ -50,6 +50,9 @@ enum Command {
     Eval(EvalArgs),
     /// Time MMS inference or one training step (random weights) and print a JSON line.
     BenchFlow(BenchFlowArgs),
+    /// Benchmark MMS, OpenCV DIS/Farneback and zero flow on real pairs, clean and through the
+    /// camera: per-set and per-pair EPE, 1/3/5 px, ms per pair, and EPE-against-time plots.
+    BenchReal(BenchRealArgs),
     /// SSIM, MAE and MSE of two images (Note S7).
     Compare(CompareArgs),
     /// Optics calculators: depth of field, detection limits, stereo depth, field of view.
@@ -120,6 +123,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Infer(a) => infer(a),
         Command::Eval(a) => eval(a),
         Command::BenchFlow(a) => bench_flow(a),
+        Command::BenchReal(a) => bench_real(a),
         Command::Compare(a) => compare(a),
         Command::Optics(c) => optics(c),
         Command::Array(c) => array(c),

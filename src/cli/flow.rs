@@ -1,4 +1,4 @@
-//! Commands of the MMS flow network: train, export, infer, eval, bench-flow.
+//! Commands of the MMS flow network: train, export, infer, eval, bench-flow, bench-real.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -23,6 +23,33 @@ pub(crate) struct BenchFlowArgs {
     iters: usize,
     #[arg(long, default_value_t = 3)]
     reps: usize,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct BenchRealArgs {
+    /// Benchmark config (JSON): sets, cameras, weights, iteration counts
+    /// (experiments/bench_real.json).
+    #[arg(long)]
+    config: PathBuf,
+    /// Output folder: report.json, report.md, epe_vs_ms_CAMERA.png, and data/ (the generated
+    /// pairs, kept and reused by the next run of the same config).
+    #[arg(long)]
+    out: PathBuf,
+    /// Weights file, or "default"; overrides the config's.
+    #[arg(long)]
+    weights: Option<String>,
+    /// Iteration counts; override the config's.
+    #[arg(long, value_delimiter = ',')]
+    iters: Option<Vec<usize>>,
+    /// Do not run the OpenCV peers.
+    #[arg(long)]
+    no_peers: bool,
+    /// Python interpreter for the OpenCV peers (scripts/flow_baselines.py, built in).
+    #[arg(long, default_value = "python3")]
+    python: String,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
 }
 
 #[derive(clap::Args)]
@@ -265,5 +292,39 @@ pub(crate) fn bench_flow(a: BenchFlowArgs) -> Result<()> {
     }
     let row = pins::report::flow_bench::run(&a.model, &a.mode, a.height, a.width, a.iters, a.reps)?;
     println!("{}", serde_json::to_string(&row)?);
+    Ok(())
+}
+
+pub(crate) fn bench_real(a: BenchRealArgs) -> Result<()> {
+    use pins::report::bench_real::{BenchOptions, run, write_outputs};
+    let opts = BenchOptions {
+        weights: a.weights.clone(),
+        iters: a.iters.clone(),
+        peers: !a.no_peers,
+        python: a.python.clone(),
+        device: pins::flow::device::select(&a.device)?,
+    };
+    let started = std::time::Instant::now();
+    let report = run(&a.config, &a.out, &opts, &|line| eprintln!("{line}"))?;
+    let command: Vec<String> = std::env::args()
+        .skip(1)
+        .map(|s| {
+            if s.contains(char::is_whitespace) {
+                format!("'{s}'")
+            } else {
+                s
+            }
+        })
+        .collect();
+    let files = write_outputs(&report, &a.out, &format!("pins {}", command.join(" ")))?;
+    for f in files {
+        println!("{}", f.display());
+    }
+    eprintln!(
+        "{} runs ({} sets skipped) in {:.0} s",
+        report.runs.len(),
+        report.skipped.len(),
+        started.elapsed().as_secs_f64()
+    );
     Ok(())
 }

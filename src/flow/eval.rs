@@ -35,6 +35,20 @@ pub struct ZeroFlow {
     pub px5: f64,
 }
 
+/// One pair's scores: its size, how many pixels have known flow, the mean ground-truth speed
+/// over them (which is also the zero-flow EPE), and one row per iteration count, timed on this
+/// pair alone (`ms_per_pair` is this pair's time).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PairEval {
+    pub name: String,
+    pub width: usize,
+    pub height: usize,
+    pub pixels: u64,
+    pub mean_gt: f64,
+    pub rows: Vec<EvalRow>,
+    pub zero_flow: ZeroFlow,
+}
+
 /// `report.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct EvalReport {
@@ -45,6 +59,36 @@ pub struct EvalReport {
     pub pixels: u64,
     pub rows: Vec<EvalRow>,
     pub zero_flow: ZeroFlow,
+    /// The same scores for each pair (absent in reports of older versions).
+    #[serde(default)]
+    pub per_pair: Vec<PairEval>,
+}
+
+impl From<FlowScores> for ZeroFlow {
+    fn from(s: FlowScores) -> Self {
+        ZeroFlow {
+            epe: s.epe,
+            ae_deg: s.ae_deg,
+            px1: s.px1,
+            px3: s.px3,
+            px5: s.px5,
+        }
+    }
+}
+
+impl EvalRow {
+    /// The row of `iters` iterations with scores `s` and `ms` milliseconds per pair.
+    pub fn of(iters: usize, s: &FlowScores, ms: f64) -> Self {
+        EvalRow {
+            iters,
+            epe: s.epe,
+            ae_deg: s.ae_deg,
+            px1: s.px1,
+            px3: s.px3,
+            px5: s.px5,
+            ms_per_pair: ms,
+        }
+    }
 }
 
 /// Mean scores of `model` on (up to `max_pairs` of) `data` at `iters` iterations.
@@ -65,7 +109,8 @@ pub fn evaluate_dataset(
     Ok(sums.scores())
 }
 
-/// Evaluates `model` on every pair of `data` for each count in `iters`, timing each pair.
+/// Evaluates `model` on every pair of `data` for each count in `iters`, timing each pair;
+/// the report holds the dataset's scores (means over all known pixels) and each pair's.
 pub fn evaluate(
     model: &Mms,
     config: &MmsConfig,
@@ -80,8 +125,12 @@ pub fn evaluate(
         .map(|i| data.load(i))
         .collect::<Result<_>>()?;
     let mut zero = FlowErrorSums::default();
+    let mut zero_pairs = Vec::with_capacity(pairs.len());
     for (_, _, gt) in &pairs {
-        zero.add(&Flow::zeros(gt.height(), gt.width()), gt, None)?;
+        let mut z = FlowErrorSums::default();
+        z.add(&Flow::zeros(gt.height(), gt.width()), gt, None)?;
+        zero.merge(&z);
+        zero_pairs.push(z.scores());
     }
     if zero.scores().pixels == 0 {
         return Err(Error::invalid(
@@ -96,26 +145,40 @@ pub fn evaluate(
     if let Some((a, b, _)) = pairs.first() {
         predict_flow(model, config, a, b, 1, device)?;
     }
+    let mut per_pair: Vec<PairEval> = data
+        .pairs
+        .iter()
+        .zip(&pairs)
+        .zip(&zero_pairs)
+        .map(|((p, (_, _, gt)), z)| PairEval {
+            name: p.name.clone(),
+            width: gt.width(),
+            height: gt.height(),
+            pixels: z.pixels,
+            mean_gt: z.epe,
+            rows: Vec::new(),
+            zero_flow: (*z).into(),
+        })
+        .collect();
     let mut rows = Vec::new();
     for &n in iters {
         let mut sums = FlowErrorSums::default();
         let mut seconds = 0.0;
-        for (a, b, gt) in &pairs {
+        for ((a, b, gt), pair) in pairs.iter().zip(per_pair.iter_mut()) {
             let t = Instant::now();
             let pred = predict_flow(model, config, a, b, n, device)?;
-            seconds += t.elapsed().as_secs_f64();
-            sums.add(&pred, gt, None)?;
+            let dt = t.elapsed().as_secs_f64();
+            seconds += dt;
+            let mut one = FlowErrorSums::default();
+            one.add(&pred, gt, None)?;
+            sums.merge(&one);
+            pair.rows.push(EvalRow::of(n, &one.scores(), 1e3 * dt));
         }
-        let s = sums.scores();
-        rows.push(EvalRow {
-            iters: n,
-            epe: s.epe,
-            ae_deg: s.ae_deg,
-            px1: s.px1,
-            px3: s.px3,
-            px5: s.px5,
-            ms_per_pair: 1e3 * seconds / pairs.len() as f64,
-        });
+        rows.push(EvalRow::of(
+            n,
+            &sums.scores(),
+            1e3 * seconds / pairs.len() as f64,
+        ));
     }
     let z = zero.scores();
     Ok(EvalReport {
@@ -125,13 +188,8 @@ pub fn evaluate(
         pairs: pairs.len(),
         pixels: z.pixels,
         rows,
-        zero_flow: ZeroFlow {
-            epe: z.epe,
-            ae_deg: z.ae_deg,
-            px1: z.px1,
-            px3: z.px3,
-            px5: z.px5,
-        },
+        zero_flow: z.into(),
+        per_pair,
     })
 }
 

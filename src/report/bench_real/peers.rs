@@ -1,0 +1,142 @@
+//! The peer methods (OpenCV DIS medium/fast/ultrafast, Farneback, zero flow) of the real-data
+//! benchmark: `scripts/flow_baselines.py`, compiled into the binary and run by Python as a
+//! subprocess on a generated dataset folder; its JSON is read back with per-pair scores.
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+
+/// The script, as shipped with this build (piped to `python3 -`, so no path is needed).
+pub const SCRIPT: &str = include_str!("../../../scripts/flow_baselines.py");
+
+/// One pair of one method.
+#[derive(Clone, Debug, Deserialize)]
+pub struct PeerPair {
+    pub name: String,
+    pub pixels: u64,
+    pub epe: f64,
+    pub ae_deg: f64,
+    pub px1: f64,
+    pub px3: f64,
+    pub px5: f64,
+    pub ms: f64,
+}
+
+/// One method over a dataset, with its pairs.
+#[derive(Clone, Debug, Deserialize)]
+pub struct PeerMethod {
+    pub name: String,
+    pub epe: f64,
+    pub ae_deg: f64,
+    pub px1: f64,
+    pub px3: f64,
+    pub px5: f64,
+    pub ms_per_pair: f64,
+    pub per_pair: Vec<PeerPair>,
+}
+
+/// The script's JSON.
+#[derive(Clone, Debug, Deserialize)]
+pub struct PeersFile {
+    pub pairs: usize,
+    pub opencv: String,
+    pub threads: i64,
+    pub methods: Vec<PeerMethod>,
+    pub zero_flow: PeerMethod,
+}
+
+/// Whether `python` can import OpenCV and numpy: `Ok(version)` of OpenCV, or `Err(why not)`,
+/// in words for the report.
+pub fn available(python: &str) -> std::result::Result<String, String> {
+    let out = Command::new(python)
+        .args(["-c", "import numpy, cv2; print(cv2.__version__)"])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| format!("{python} could not be started ({e})"))?;
+    if out.status.success() {
+        Ok(String::from_utf8_lossy(&out.stdout).trim().to_string())
+    } else {
+        let err = String::from_utf8_lossy(&out.stderr);
+        let last = err.lines().last().unwrap_or("").trim();
+        Err(format!(
+            "`{python} -c \"import numpy, cv2\"` failed ({last}); \
+             install them with `pip install opencv-python-headless numpy`"
+        ))
+    }
+}
+
+/// Runs the baselines on `data` with `threads` OpenCV threads, writing their JSON to `json`,
+/// and reads it back. A failure of the script is an error carrying its message.
+pub fn run(python: &str, data: &Path, json: &Path, threads: usize) -> Result<PeersFile> {
+    let mut child = Command::new(python)
+        .arg("-")
+        .arg("--data")
+        .arg(data)
+        .arg("--out")
+        .arg(json)
+        .arg("--threads")
+        .arg(threads.to_string())
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| Error::invalid("peers", format!("{python} could not be started: {e}")))?;
+    if let Some(mut stdin) = child.stdin.take() {
+        stdin
+            .write_all(SCRIPT.as_bytes())
+            .map_err(|e| Error::invalid("peers", format!("piping the script to {python}: {e}")))?;
+    }
+    let out = child
+        .wait_with_output()
+        .map_err(|e| Error::invalid("peers", format!("waiting for {python}: {e}")))?;
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        return Err(Error::invalid(
+            "peers",
+            format!(
+                "scripts/flow_baselines.py on {} failed ({}): {}",
+                data.display(),
+                out.status,
+                err.trim()
+            ),
+        ));
+    }
+    read(json)
+}
+
+/// Reads the script's JSON and checks that every method covers the same pairs.
+pub fn read(json: &Path) -> Result<PeersFile> {
+    let text = std::fs::read_to_string(json).map_err(|e| Error::io(json, e))?;
+    let f: PeersFile =
+        serde_json::from_str(&text).map_err(|e| Error::format(json, e.to_string()))?;
+    for m in f.methods.iter().chain([&f.zero_flow]) {
+        if m.per_pair.len() != f.pairs {
+            return Err(Error::format(
+                json,
+                format!(
+                    "{}: {} per-pair rows for {} pairs",
+                    m.name,
+                    m.per_pair.len(),
+                    f.pairs
+                ),
+            ));
+        }
+    }
+    Ok(f)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_script_is_compiled_in_and_a_missing_python_is_explained() {
+        assert!(SCRIPT.contains("def zero_flow"));
+        let why = available("/nonexistent/python3").unwrap_err();
+        assert!(why.contains("could not be started"), "{why}");
+    }
+}

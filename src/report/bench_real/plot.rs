@@ -1,0 +1,64 @@
+//! The EPE-against-time plots of the real-data benchmark, one per camera: MMS at each iteration
+//! count as a line, each peer and the zero flow as a point, all as means over the sets.
+
+use std::path::{Path, PathBuf};
+
+use super::report::BenchRealReport;
+use crate::error::Result;
+use crate::io::chart::{Chart, Series};
+
+/// `DIR/epe_vs_ms_CAMERA.png` for each camera with results; returns the files written.
+pub fn write(r: &BenchRealReport, dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for cam in &r.cameras {
+        let rows: Vec<_> = r
+            .summary
+            .iter()
+            .filter(|s| &s.camera == cam)
+            .map(|s| &s.scores)
+            .collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let mms: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|m| m.iters.is_some())
+            .map(|m| (m.ms_per_pair, m.epe))
+            .collect();
+        let iters: Vec<String> = rows
+            .iter()
+            .filter_map(|m| m.iters.map(|n| n.to_string()))
+            .collect();
+        let mut series = vec![
+            Series {
+                name: format!("{} (iterations {})", r.model, iters.join(", ")),
+                points: mms.clone(),
+                markers: false,
+            },
+            Series {
+                name: format!("{} points", r.model),
+                points: mms,
+                markers: true,
+            },
+        ];
+        for m in rows.iter().filter(|m| m.iters.is_none()) {
+            series.push(Series {
+                name: m.method.clone(),
+                points: vec![(m.ms_per_pair, m.epe)],
+                markers: true,
+            });
+        }
+        let sets = r.runs.iter().filter(|x| &x.camera == cam).count();
+        let png = dir.join(format!("epe_vs_ms_{cam}.png"));
+        Chart {
+            title: format!("EPE against run time, {cam}: mean of {sets} real sets"),
+            x_label: "ms per pair".into(),
+            y_label: "EPE (px)".into(),
+            series,
+            log_y: true,
+        }
+        .write_png(&png, 800, 500)?;
+        written.push(png);
+    }
+    Ok(written)
+}
