@@ -236,8 +236,9 @@ fn frames_are_tracked_through_the_shipped_network() {
     assert!(msg.contains("MMS flow"), "{msg}");
     let tracks = json(&out.join("tracks.json"));
     assert!(tracks["objects"].is_array() && tracks["ms_per_frame"].as_f64().is_some());
-    // --flows and --frames together are refused.
-    failed(&pins(&[
+    // --flows and --frames together: the flows are read, the frames feed the photometric
+    // test; a frame count that does not fit the flows is refused.
+    ok(&pins(&[
         "track",
         "--frames",
         clip.join("frames").to_str().unwrap(),
@@ -246,6 +247,21 @@ fn frames_are_tracked_through_the_shipped_network() {
         "--out",
         out.to_str().unwrap(),
     ]));
+    let few = d.path().join("few");
+    std::fs::create_dir_all(&few).unwrap();
+    for f in ["00000.png", "00001.png"] {
+        std::fs::copy(clip.join("frames").join(f), few.join(f)).unwrap();
+    }
+    let msg = failed(&pins(&[
+        "track",
+        "--frames",
+        few.to_str().unwrap(),
+        "--flows",
+        clip.join("flows").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(msg.contains("need one frame more than flows"), "{msg}");
 }
 
 #[test]

@@ -7,6 +7,7 @@ use anyhow::{Result, bail};
 use pins::flow::sequence::pair_flows;
 use pins::io;
 use pins::scene::truth::Truth;
+use pins::track::photometric::{GreyFrame, GreyPair};
 use pins::track::run::Tracks;
 
 #[derive(clap::Args)]
@@ -33,8 +34,9 @@ struct RunArgs {
     /// Folder of .flo files (flow from frame n to n + 1), in frame order by name.
     #[arg(long)]
     flows: Option<PathBuf>,
-    /// Folder of frames, in order by name: flow is estimated by the MMS network.
-    #[arg(long, conflicts_with = "flows")]
+    /// Folder of frames, in order by name: flow is estimated by the MMS network (or, with
+    /// --flows, read from there); the frames also feed the photometric test.
+    #[arg(long)]
     frames: Option<PathBuf>,
     /// MMS weights for --frames (`default` = the shipped mms-small).
     #[arg(long, default_value = "default")]
@@ -67,12 +69,37 @@ struct RunArgs {
     /// frames where the flow jitters (estimated flow); 0 turns it off.
     #[arg(long, default_value_t = 3.0)]
     noise_k: f64,
-    /// Ground truth (truth.json from `pins track render`) to draw in the plots.
+    /// Background-motion model fitted and subtracted before the threshold.
+    #[arg(long, value_enum, default_value = "affine")]
+    background: Background,
+    /// Turn off the photometric test (it runs whenever frames are given).
+    #[arg(long)]
+    no_photometric: bool,
+    /// Photometric test: a region passes when its warp residual with its own flow is at most
+    /// this fraction of the residual with the background's motion.
+    #[arg(long, default_value_t = 0.8)]
+    max_residual_ratio: f64,
+    /// Confirmation window: consecutive detections, moving as their flow says, before a track
+    /// is reported.
+    #[arg(long, default_value_t = 5)]
+    confirm: usize,
+    /// Write every frame's regions, their verdicts and reasons to DIR/regions.jsonl.
+    #[arg(long)]
+    debug: Option<PathBuf>,
+    /// Ground truth (truth.json from `pins track render`) to draw in the plots; the
+    /// background-flow magnitude of the flows is then measured too.
     #[arg(long)]
     truth: Option<PathBuf>,
     /// Skip the plots.
     #[arg(long)]
     no_plots: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Background {
+    None,
+    Translation,
+    Affine,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -98,6 +125,10 @@ struct EvalArgs {
     /// truth.json from `pins track render`.
     #[arg(long)]
     truth: PathBuf,
+    /// Folder of the estimated flows that were tracked: their background-flow magnitude over
+    /// the truly static pixels is reported too.
+    #[arg(long)]
+    flows: Option<PathBuf>,
     /// Also write the report as JSON here.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -126,6 +157,8 @@ pub(crate) fn track(a: TrackArgs) -> Result<()> {
 
 fn run(a: RunArgs) -> Result<()> {
     use pins::track::{
+        background::BackgroundModel,
+        detect::DetectConfig,
         mtp::{self, MtpConfig},
         multi::TrackerConfig,
         run as tr,
@@ -143,9 +176,24 @@ fn run(a: RunArgs) -> Result<()> {
             order: a.order,
             ..MtpConfig::default()
         },
+        confirm: a.confirm,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;
+    if a.confirm == 0 {
+        bail!("--confirm must be >= 1");
+    }
+    let detect = DetectConfig {
+        background: match a.background {
+            Background::None => BackgroundModel::None,
+            Background::Translation => BackgroundModel::Translation,
+            Background::Affine => BackgroundModel::Affine,
+        },
+        photometric: !a.no_photometric,
+        max_residual_ratio: a.max_residual_ratio,
+        ..DetectConfig::default()
+    };
+    detect.validate()?;
     if !(a.noise_k.is_finite() && a.noise_k >= 0.0) {
         bail!("--noise-k must be finite and >= 0, got {}", a.noise_k);
     }
@@ -155,30 +203,56 @@ fn run(a: RunArgs) -> Result<()> {
         threshold: a.threshold,
         noise_k: a.noise_k,
         min_area: a.min_area,
+        detect,
+        debug: a.debug.is_some(),
     };
     // Read the truth first so a bad file fails before any work.
     let truth = a.truth.as_deref().map(Truth::read).transpose()?;
-    let (tracks, frames, flow_ms) = match (&a.flows, &a.frames) {
-        (Some(dir), None) => {
+    let (run, frames, flow_ms) = match (&a.flows, &a.frames) {
+        (Some(dir), frames) => {
             let files = tr::flow_files(dir)?;
-            (tr::track_flows(&files, &opts)?, files.len(), None)
+            let images = frames.as_deref().map(io::frame_files).transpose()?;
+            let run = tr::track_flows(&files, images.as_deref(), &opts, truth.as_ref())?;
+            (run, files.len(), None)
         }
         (None, Some(dir)) => {
             let files = io::frame_files(dir)?;
             let predictor = pins::flow::infer::Predictor::load(&a.weights)?;
             let iters = a.iters.unwrap_or(predictor.config.iters);
             let mut flow_ms = 0.0;
+            let mut prev: Option<GreyFrame> = None;
             let flows = pair_flows(&predictor, files.as_slice(), iters).map(|p| {
                 let p = p?;
                 flow_ms += p.ms;
-                Ok((files[p.index].display().to_string(), p.flow))
+                let first = match prev.take() {
+                    Some(g) => g,
+                    None => GreyFrame::new(&io::read_image(&files[p.index])?),
+                };
+                let second = GreyFrame::new(&io::read_image(&files[p.index + 1])?);
+                let pair = GreyPair::of(&first, &second);
+                prev = Some(second);
+                Ok(tr::FlowStep {
+                    name: files[p.index].display().to_string(),
+                    flow: p.flow,
+                    frames: pair,
+                })
             });
-            let tracks = tr::track_sequence(flows, &opts)?;
+            let run = tr::track_sequence(flows, &opts, truth.as_ref())?;
             let n = files.len() - 1;
-            (tracks, n, Some(flow_ms / n as f64))
+            (run, n, Some(flow_ms / n as f64))
         }
         _ => bail!("give either --flows DIR or --frames DIR"),
     };
+    let tracks = run.tracks;
+    if let Some(dir) = &a.debug {
+        std::fs::create_dir_all(dir)?;
+        let mut text = String::new();
+        for f in &run.debug {
+            text += &serde_json::to_string(f)?;
+            text.push('\n');
+        }
+        io::write_bytes_atomic(&dir.join("regions.jsonl"), text.as_bytes())?;
+    }
     // Plots first: tracks.json, written last, marks a finished run.
     if !a.no_plots {
         std::fs::create_dir_all(&out)?;
@@ -195,6 +269,12 @@ fn run(a: RunArgs) -> Result<()> {
     match flow_ms {
         Some(f) => println!(", MMS flow {f:.0} ms per frame"),
         None => println!(),
+    }
+    if let Some(b) = &tracks.background_flow {
+        println!(
+            "background flow over static pixels: mean {:.3} px, p99 {:.3} px, max {:.2} px",
+            b.mean, b.p99, b.max
+        );
     }
     Ok(())
 }
@@ -262,7 +342,11 @@ fn eval(a: EvalArgs) -> Result<()> {
     use pins::track::eval::{evaluate, table};
     let tracks = Tracks::read(&a.tracks)?;
     let truth = Truth::read(&a.truth)?;
-    let report = evaluate(&tracks, &truth)?;
+    let mut report = evaluate(&tracks, &truth)?;
+    if let Some(dir) = &a.flows {
+        let files = pins::track::run::flow_files(dir)?;
+        report.background_flow = pins::track::run::background_flow(&files, &truth)?;
+    }
     println!("{}", table(&report));
     if let Some(out) = a.out {
         io::write_bytes_atomic(&out, serde_json::to_string_pretty(&report)?.as_bytes())?;

@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::hungarian::assign;
 use super::run::Tracks;
+use super::static_flow::BackgroundFlow;
 use crate::error::{Error, Result};
 use crate::scene::truth::Truth;
 
@@ -46,6 +47,10 @@ pub struct TrackReport {
     pub missed: Vec<usize>,
     pub id_switches: usize,
     pub ms_per_frame: Option<f64>,
+    /// The background-flow magnitude of the flows tracked (from `tracks.json`, or measured
+    /// from the flows by `pins track eval --flows`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub background_flow: Option<BackgroundFlow>,
 }
 
 #[derive(Default, Clone, Copy)]
@@ -174,6 +179,7 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
         missed,
         id_switches: id_switches(tracks, truth),
         ms_per_frame: tracks.ms_per_frame,
+        background_flow: tracks.background_flow.clone(),
     })
 }
 
@@ -276,6 +282,21 @@ pub fn table(report: &TrackReport) -> String {
     if let Some(ms) = report.ms_per_frame {
         s += &format!(", {ms:.2} ms per frame");
     }
+    let spurious = report
+        .objects
+        .iter()
+        .filter(|o| o.truth_index.is_none())
+        .count();
+    s += &format!(
+        ", {} tracks, {spurious} following no object",
+        report.objects.len()
+    );
+    if let Some(b) = &report.background_flow {
+        s += &format!(
+            "\nbackground flow over static pixels: mean {:.3} px, p99 {:.3} px, max {:.2} px ({} frames)",
+            b.mean, b.p99, b.max, b.frames
+        );
+    }
     s
 }
 
@@ -334,6 +355,7 @@ mod tests {
         let tracks = Tracks {
             objects: vec![track(7, 60.0, 3.0), track(9, 20.0, 0.0)],
             ms_per_frame: Some(1.0),
+            background_flow: None,
         };
         let r = evaluate(&tracks, &truth()).unwrap();
         assert_eq!(r.objects[0].truth_index, Some(1));
@@ -368,6 +390,7 @@ mod tests {
             &Tracks {
                 objects: vec![a, b, far, short],
                 ms_per_frame: None,
+                background_flow: None,
             },
             &truth(),
         )

@@ -7,10 +7,13 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::detect::DetectConfig;
 use super::eval::{HorizonError, evaluate};
 use super::mtp::MtpConfig;
 use super::multi::TrackerConfig;
-use super::run::{TrackOptions, Tracks, track_sequence};
+use super::photometric::{GreyFrame, GreyPair};
+use super::run::{FlowStep, TrackOptions, Tracks, track_sequence};
+use super::static_flow::BackgroundFlow;
 use crate::dataset::sequence::SequenceConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;
@@ -71,6 +74,13 @@ pub struct ExperimentConfig {
     /// Robust noise floor of the threshold, in standard deviations (see `TrackOptions`).
     #[serde(default = "default_noise_k")]
     pub noise_k: f64,
+    /// The background model and the photometric test (which runs on MMS clips, whose camera
+    /// frames are at hand).
+    #[serde(default)]
+    pub detect: DetectConfig,
+    /// Confirmation window and motion consistency (see `TrackerConfig`); the defaults when absent.
+    #[serde(default)]
+    pub confirm: Option<usize>,
 }
 
 fn default_source() -> FlowSource {
@@ -122,6 +132,10 @@ impl ExperimentConfig {
         if !(self.noise_k.is_finite() && self.noise_k >= 0.0) {
             return Err(Error::invalid("noise_k", "must be finite and >= 0"));
         }
+        self.detect.validate()?;
+        if self.confirm == Some(0) {
+            return Err(Error::invalid("confirm", "must be >= 1"));
+        }
         for c in &self.clips {
             c.clip.validate()?;
         }
@@ -154,12 +168,23 @@ pub struct ExperimentReport {
     pub rows: Vec<Row>,
     /// (clip, predictor) → ID switches.
     pub id_switches: Vec<(String, String, usize)>,
+    /// (clip, predictor) → tracks that follow no object.
+    #[serde(default)]
+    pub spurious: Vec<(String, String, usize)>,
+    /// (clip, predictor) → true objects followed by no track.
+    #[serde(default)]
+    pub missed: Vec<(String, String, Vec<usize>)>,
+    /// Clip → background-flow magnitude of its flows.
+    #[serde(default)]
+    pub background_flow: Vec<(String, BackgroundFlow)>,
 }
 
 /// A clip's flows and truth, computed once and shared by every predictor.
 pub struct ClipData {
     pub truth: Truth,
     pub flows: Vec<Flow>,
+    /// The camera frames (MMS clips), for the photometric test.
+    pub frames: Option<Vec<GreyFrame>>,
 }
 
 /// The flows of a clip: exact, or MMS on its camera frames (`predictor` must then be given).
@@ -177,7 +202,14 @@ pub fn clip_flows(
                 .into_par_iter()
                 .map(|n| scene.flow(n))
                 .collect::<Result<Vec<_>>>()?;
-            Ok((ClipData { truth, flows }, None))
+            Ok((
+                ClipData {
+                    truth,
+                    flows,
+                    frames: None,
+                },
+                None,
+            ))
         }
         (FlowSource::Mms, Some(p)) => {
             let camera = cfg.camera()?;
@@ -191,21 +223,37 @@ pub fn clip_flows(
             let pairs = pair_flows(p, frames.as_slice(), iters).collect::<Result<Vec<_>>>()?;
             let ms = pairs.iter().map(|f| f.ms).sum::<f64>() / pairs.len() as f64;
             let flows = pairs.into_iter().map(|f| f.flow).collect();
-            Ok((ClipData { truth, flows }, Some(ms)))
+            let grey = frames.iter().map(GreyFrame::new).collect();
+            Ok((
+                ClipData {
+                    truth,
+                    flows,
+                    frames: Some(grey),
+                },
+                Some(ms),
+            ))
         }
         (FlowSource::Mms, None) => Err(Error::invalid("flow", "MMS flow needs weights")),
     }
 }
 
-/// Tracks one clip's flows with one predictor.
+/// Tracks one clip's flows with one predictor (the background-flow metric included).
 pub fn track_clip(data: &ClipData, opts: &TrackOptions) -> Result<Tracks> {
-    track_sequence(
-        data.flows
-            .iter()
-            .enumerate()
-            .map(|(n, f)| Ok((format!("frame {n}"), f.clone()))),
+    Ok(track_sequence(
+        data.flows.iter().enumerate().map(|(n, f)| {
+            Ok(FlowStep {
+                name: format!("frame {n}"),
+                flow: f.clone(),
+                frames: data
+                    .frames
+                    .as_ref()
+                    .and_then(|g| GreyPair::of(g.get(n)?, g.get(n + 1)?)),
+            })
+        }),
         opts,
-    )
+        Some(&data.truth),
+    )?
+    .tracks)
 }
 
 /// Runs the experiment; `on_tracks` sees every (clip, predictor, tracks, truth) for plots.
@@ -220,6 +268,9 @@ pub fn run(
     };
     let mut rows = Vec::new();
     let mut switches = Vec::new();
+    let mut spurious = Vec::new();
+    let mut missed = Vec::new();
+    let mut background = Vec::new();
     let mut flow_ms = Vec::new();
     for clip in &cfg.clips {
         let (data, ms) = clip_flows(&clip.clip, cfg.flow, predictor.as_ref(), cfg.iters)?;
@@ -228,14 +279,22 @@ pub fn run(
             let opts = TrackOptions {
                 tracker: TrackerConfig {
                     mtp: p.mtp.clone(),
+                    confirm: cfg.confirm.unwrap_or(TrackerConfig::default().confirm),
                     ..TrackerConfig::default()
                 },
                 horizons: cfg.horizons.clone(),
                 threshold: cfg.threshold,
                 noise_k: cfg.noise_k,
                 min_area: cfg.min_area,
+                detect: cfg.detect.clone(),
+                debug: false,
             };
             let tracks = track_clip(&data, &opts)?;
+            if let Some(b) = &tracks.background_flow
+                && !background.iter().any(|(c, _)| c == &clip.name)
+            {
+                background.push((clip.name.clone(), b.clone()));
+            }
             on_tracks(&clip.name, &p.name, &tracks, &data.truth)?;
             let report = evaluate(&tracks, &data.truth)?;
             let ms = tracks.ms_per_frame.unwrap_or(f64::NAN);
@@ -262,6 +321,9 @@ pub fn run(
                 });
             }
             switches.push((clip.name.clone(), p.name.clone(), report.id_switches));
+            let lost = report.objects.iter().filter(|o| o.truth_index.is_none());
+            spurious.push((clip.name.clone(), p.name.clone(), lost.count()));
+            missed.push((clip.name.clone(), p.name.clone(), report.missed.clone()));
         }
     }
     Ok(ExperimentReport {
@@ -270,6 +332,9 @@ pub fn run(
             .then(|| flow_ms.iter().sum::<f64>() / flow_ms.len() as f64),
         rows,
         id_switches: switches,
+        spurious,
+        missed,
+        background_flow: background,
     })
 }
 
@@ -306,6 +371,22 @@ pub fn table(r: &ExperimentReport) -> String {
         if *n > 0 {
             s += &format!("{c} / {p}: {n} ID switches\n");
         }
+    }
+    for (c, p, n) in &r.spurious {
+        if *n > 0 {
+            s += &format!("{c} / {p}: {n} tracks follow no object\n");
+        }
+    }
+    for (c, p, m) in &r.missed {
+        if !m.is_empty() {
+            s += &format!("{c} / {p}: missed objects {m:?}\n");
+        }
+    }
+    for (c, b) in &r.background_flow {
+        s += &format!(
+            "{c}: background flow mean {:.3} px, p99 {:.3} px\n",
+            b.mean, b.p99
+        );
     }
     if let Some(ms) = r.flow_ms_per_frame {
         s += &format!("MMS flow: {ms:.0} ms per frame\n");

@@ -1,12 +1,17 @@
-//! Motion trajectory prediction from flow (Notes S13–S15): regions of interest, Kalman
-//! smoothing, weighted polynomial fits and sub-step extrapolation, optimal assignment.
+//! Motion trajectory prediction from flow (Notes S13–S15): regions of interest confirmed by a
+//! background-motion model, a photometric test and consistency over frames, Kalman smoothing,
+//! weighted polynomial fits and sub-step extrapolation, optimal assignment.
 
+pub mod background;
+pub mod detect;
 pub mod eval;
 pub mod experiment;
 pub mod hungarian;
 pub mod kalman;
 pub mod mtp;
 pub mod multi;
+pub mod photometric;
 pub mod predict;
 pub mod roi;
 pub mod run;
+pub mod static_flow;

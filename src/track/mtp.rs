@@ -112,6 +112,11 @@ impl Mtp {
         })
     }
 
+    /// The position filter's velocity (px/frame).
+    pub fn velocity(&self) -> (f64, f64) {
+        (self.x.x[1], self.y.x[1])
+    }
+
     /// Feeds frame `frame`'s region (or `None` when the object was not seen: the filters coast)
     /// and predicts `horizon` frames ahead.
     pub fn step(
@@ -190,6 +195,7 @@ mod tests {
             speed,
             direction: dir,
             bbox: [0, 0, 1, 1],
+            mean_flow: (0.0, 0.0),
         }
     }
 

@@ -1,8 +1,13 @@
 //! Many objects (Movie S2): every region above a minimum area is a detection; tracks keep
 //! their IDs through optimal assignment on the distance to each track's predicted position,
-//! with a gate; a track is confirmed after `confirm` consecutive hits and ended after `patience`
-//! consecutive misses, so one missed detection does not change an ID. When two objects merge
-//! into one region, the tracks on it coast until it splits. Each track has its own predictor.
+//! with a gate; a track is confirmed after `confirm` consecutive hits whose motion is
+//! consistent (issue 16: the centre moved as the regions' flow said it would, which a blob of
+//! spurious flow on a still background does not do) and ended after `patience` consecutive
+//! misses, so one missed detection does not change an ID. IDs are given at confirmation. When
+//! two objects merge into one region, the tracks on it coast until it splits. Each track has
+//! its own predictor.
+
+use std::collections::VecDeque;
 
 use serde::{Deserialize, Serialize};
 
@@ -20,10 +25,26 @@ pub struct TrackerConfig {
     /// widens by half for every frame a track has coasted, so a track re-acquires its object
     /// after an occlusion or a merge.
     pub gate_px: f64,
-    /// Hits before a new track is reported.
+    /// Consecutive hits before a new track is reported (the confirmation window).
     pub confirm: usize,
     /// Misses before a track ends.
     pub patience: usize,
+    /// Motion consistency over the confirmation window: the centre's displacement from the
+    /// first to the last hit must match the sum of the regions' flows within
+    /// `consistency_px + consistency_rel × |sum of flows|`. Infinite turns the test off.
+    pub consistency_px: f64,
+    pub consistency_rel: f64,
+    /// The gate widens by half per coasted frame up to this many times `gate_px`.
+    pub max_gate_factor: f64,
+    /// Motion gate: a detection whose mean flow differs from the track's velocity by more
+    /// than `velocity_gate_px + velocity_gate_rel × |velocity|` (px/frame) is not matched to
+    /// it (a spurious blob beside a coasting track moves its own way). Infinite turns it off.
+    pub velocity_gate_px: f64,
+    pub velocity_gate_rel: f64,
+    /// No track is born from a detection within this distance (px) of a confirmed track's
+    /// centre: a second region on the same object (a fragment of a poorly estimated flow) is
+    /// not a second object.
+    pub birth_exclusion_px: f64,
 }
 
 impl Default for TrackerConfig {
@@ -31,8 +52,14 @@ impl Default for TrackerConfig {
         Self {
             mtp: MtpConfig::default(),
             gate_px: 40.0,
-            confirm: 2,
+            confirm: 5,
             patience: 15,
+            consistency_px: 2.0,
+            consistency_rel: 0.3,
+            max_gate_factor: 2.0,
+            velocity_gate_px: 2.0,
+            velocity_gate_rel: 0.5,
+            birth_exclusion_px: 30.0,
         }
     }
 }
@@ -46,14 +73,43 @@ pub struct TrackEstimate {
     pub observed: bool,
 }
 
+/// A tentative track's hit: the region's centre and its mean flow.
+type Hit = ((f64, f64), (f64, f64));
+
 struct Track {
+    /// The reported ID (0 until confirmed).
     id: usize,
+    /// An internal key, given at birth, for the debug output.
+    key: usize,
     mtp: Mtp,
+    /// The last `confirm` hits (centre, mean flow) while the track is tentative.
+    window: VecDeque<Hit>,
     hits: usize,
     misses: usize,
     confirmed: bool,
     /// One-frame-ahead prediction used for matching.
     predicted: (f64, f64),
+    /// The filtered centre in the last frame.
+    centre: (f64, f64),
+}
+
+/// What became of one detection in the last frame (for the debug output).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Assignment {
+    /// The track's internal key (stable over its life, tentative or not).
+    pub key: usize,
+    /// The reported ID, when the track is confirmed.
+    pub id: Option<usize>,
+    /// `new`, `tentative`, `confirmed` (this frame), `tracked`, `merged` (shared by several
+    /// tracks, which coast), or `fragment` (unmatched, beside a confirmed track: no new track).
+    pub state: &'static str,
+}
+
+/// A tentative track whose confirmation window is full but not yet consistent, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Held {
+    pub key: usize,
+    pub reason: String,
 }
 
 /// The multi-object tracker.
@@ -61,6 +117,11 @@ pub struct Tracker {
     config: TrackerConfig,
     tracks: Vec<Track>,
     next_id: usize,
+    next_key: usize,
+    /// Per detection of the last frame.
+    pub assignments: Vec<Option<Assignment>>,
+    /// Tentative tracks held back from confirmation in the last frame.
+    pub held: Vec<Held>,
 }
 
 impl Tracker {
@@ -72,10 +133,33 @@ impl Tracker {
                 "gate must be finite and > 0, confirm >= 1",
             ));
         }
+        if config.max_gate_factor.is_nan() || config.max_gate_factor < 1.0 {
+            return Err(Error::invalid(
+                "tracker.max_gate_factor",
+                format!("must be >= 1, got {}", config.max_gate_factor),
+            ));
+        }
+        for (n, v) in [
+            ("consistency_px", config.consistency_px),
+            ("consistency_rel", config.consistency_rel),
+            ("velocity_gate_px", config.velocity_gate_px),
+            ("velocity_gate_rel", config.velocity_gate_rel),
+            ("birth_exclusion_px", config.birth_exclusion_px),
+        ] {
+            if v.is_nan() || v < 0.0 {
+                return Err(Error::invalid(
+                    format!("tracker.{n}"),
+                    format!("must be >= 0 (inf turns the test off), got {v}"),
+                ));
+            }
+        }
         Ok(Self {
             config,
             tracks: Vec::new(),
             next_id: 1,
+            next_key: 1,
+            assignments: Vec::new(),
+            held: Vec::new(),
         })
     }
 
@@ -91,14 +175,23 @@ impl Tracker {
             .tracks
             .iter()
             .map(|t| {
-                let gate = self.config.gate_px * (1.0 + 0.5 * t.misses as f64);
+                let c = &self.config;
+                let gate = c.gate_px * (1.0 + 0.5 * t.misses as f64).min(c.max_gate_factor);
+                let v = t.mtp.velocity();
+                let vgate = c.velocity_gate_px + c.velocity_gate_rel * v.0.hypot(v.1);
                 detections
                     .iter()
                     .map(|d| {
                         let dist = ((d.centroid.0 - t.predicted.0).powi(2)
                             + (d.centroid.1 - t.predicted.1).powi(2))
                         .sqrt();
-                        if dist <= gate { dist } else { f64::INFINITY }
+                        let dv = (d.mean_flow.0 - v.0).hypot(d.mean_flow.1 - v.1);
+                        // A NaN velocity difference (unknown) does not close the gate.
+                        if dist <= gate && (dv.is_nan() || dv <= vgate) {
+                            dist
+                        } else {
+                            f64::INFINITY
+                        }
                     })
                     .collect()
             })
@@ -122,6 +215,21 @@ impl Tracker {
         let mut used = vec![false; detections.len()];
         let mut out = Vec::new();
         let horizon = horizon.max(1);
+        self.assignments = vec![None; detections.len()];
+        self.held.clear();
+        let (confirm, tol_px, tol_rel) = (
+            self.config.confirm,
+            self.config.consistency_px,
+            self.config.consistency_rel,
+        );
+        // Where the confirmed tracks are: a tentative track there is a fragment of their object.
+        let exclusion = self.config.birth_exclusion_px;
+        let mut occupied: Vec<(usize, (f64, f64))> = self
+            .tracks
+            .iter()
+            .filter(|t| t.confirmed)
+            .map(|t| (t.id, t.predicted))
+            .collect();
         for (t, m) in self.tracks.iter_mut().zip(&matches) {
             let det = m.and_then(|j| {
                 used[j] = true;
@@ -135,14 +243,62 @@ impl Tracker {
                         .zip(&shared)
                         .any(|(d, &s)| s && covers(d, t.predicted)));
             let e = t.mtp.step(frame, det, horizon)?;
-            if det.is_some() {
+            let was_confirmed = t.confirmed;
+            if let Some(d) = det {
                 t.hits += 1;
                 t.misses = 0;
+                if !t.confirmed {
+                    t.window.push_back((d.centroid, d.mean_flow));
+                    while t.window.len() > confirm {
+                        t.window.pop_front();
+                    }
+                }
             } else if !in_merge {
                 t.misses += 1;
             }
-            t.confirmed |= t.hits >= self.config.confirm;
+            if !t.confirmed && t.hits >= confirm {
+                let beside = occupied
+                    .iter()
+                    .find(|(_, c)| (c.0 - t.predicted.0).hypot(c.1 - t.predicted.1) <= exclusion);
+                let verdict = match beside {
+                    Some((id, _)) => Some(format!("a fragment beside track {id}")),
+                    None => inconsistency(&t.window, tol_px, tol_rel),
+                };
+                match verdict {
+                    None => {
+                        occupied.push((self.next_id, t.predicted));
+                        t.confirmed = true;
+                        t.id = self.next_id;
+                        self.next_id += 1;
+                        t.window.clear();
+                    }
+                    Some(reason) if t.window.len() >= confirm => {
+                        // Keep it tentative: the window slides, so an object whose first frames
+                        // were poorly segmented (entering the frame) is confirmed later.
+                        if det.is_some() {
+                            self.held.push(Held { key: t.key, reason });
+                        }
+                    }
+                    Some(_) => {}
+                }
+            }
+            if let Some(j) = *m {
+                self.assignments[j] = Some(Assignment {
+                    key: t.key,
+                    id: t.confirmed.then_some(t.id),
+                    state: if shared[j] {
+                        "merged"
+                    } else if t.confirmed && !was_confirmed {
+                        "confirmed"
+                    } else if t.confirmed {
+                        "tracked"
+                    } else {
+                        "tentative"
+                    },
+                });
+            }
             t.predicted = e.path[0];
+            t.centre = e.centroid;
             if t.confirmed {
                 out.push(TrackEstimate {
                     id: t.id,
@@ -158,31 +314,73 @@ impl Tracker {
             if used[j] {
                 continue;
             }
+            if let Some(t) = self.tracks.iter().find(|t| {
+                t.confirmed
+                    && (t.centre.0 - d.centroid.0).hypot(t.centre.1 - d.centroid.1) <= exclusion
+            }) {
+                self.assignments[j] = Some(Assignment {
+                    key: t.key,
+                    id: Some(t.id),
+                    state: "fragment",
+                });
+                continue;
+            }
             let mut mtp = Mtp::new(self.config.mtp.clone())?;
             let e = mtp.step(frame, Some(d), horizon)?;
             let mut t = Track {
                 id: 0,
+                key: self.next_key,
                 mtp,
+                window: VecDeque::from([(d.centroid, d.mean_flow)]),
                 hits: 1,
                 misses: 0,
-                confirmed: self.config.confirm <= 1,
+                confirmed: false,
                 predicted: e.path[0],
+                centre: e.centroid,
             };
-            // IDs go to tracks when they are born, so they stay small and in order of appearance.
-            t.id = self.next_id;
-            self.next_id += 1;
-            if t.confirmed {
+            self.next_key += 1;
+            // With a window of one frame there is nothing to compare: confirmed at once.
+            if confirm <= 1 {
+                t.confirmed = true;
+                t.id = self.next_id;
+                self.next_id += 1;
                 out.push(TrackEstimate {
                     id: t.id,
                     estimate: e,
                     observed: true,
                 });
             }
+            self.assignments[j] = Some(Assignment {
+                key: t.key,
+                id: t.confirmed.then_some(t.id),
+                state: "new",
+            });
             self.tracks.push(t);
         }
         out.sort_by_key(|t| t.id);
         Ok(out)
     }
+}
+
+/// Why a tentative track's window is not one moving object, or `None` when it is: the centre
+/// moved from the first to the last hit by the sum of the flows in between (the flow of frame
+/// n is the displacement to frame n + 1), within `px + rel × |sum|`.
+fn inconsistency(window: &VecDeque<Hit>, px: f64, rel: f64) -> Option<String> {
+    let (first, last) = (window.front()?, window.back()?);
+    let k = window.len() - 1;
+    let (pu, pv) = window
+        .iter()
+        .take(k)
+        .fold((0.0, 0.0), |a, w| (a.0 + w.1.0, a.1 + w.1.1));
+    let (au, av) = (last.0.0 - first.0.0, last.0.1 - first.0.1);
+    let err = (au - pu).hypot(av - pv);
+    let tol = px + rel * pu.hypot(pv);
+    (err > tol).then(|| {
+        format!(
+            "inconsistent motion over {k} frames: the centre moved ({au:.1}, {av:.1}) px, \
+             the flow says ({pu:.1}, {pv:.1}) px (off by {err:.1} > {tol:.1})"
+        )
+    })
 }
 
 /// True when `point` lies within the equivalent radius √(area/π) of region `d`.
@@ -195,13 +393,14 @@ fn covers(d: &Region, point: (f64, f64)) -> bool {
 mod tests {
     use super::*;
 
-    fn det(x: f64, y: f64, vx: f64) -> Region {
+    fn det(x: f64, y: f64, vx: f64, vy: f64) -> Region {
         Region {
             pixels: 40,
             centroid: (x, y),
             speed: vx.abs(),
             direction: Some(if vx >= 0.0 { 0.0 } else { std::f64::consts::PI }),
             bbox: [0, 0, 1, 1],
+            mean_flow: (vx, vy),
         }
     }
 
@@ -210,19 +409,57 @@ mod tests {
         let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
         let mut ids_a = Vec::new();
         for n in 0..40 {
-            let a = det(10.0 + 3.0 * n as f64, 50.0 + 0.5 * n as f64, 3.0);
-            let b = det(130.0 - 3.0 * n as f64, 70.0 - 0.5 * n as f64, -3.0);
+            let a = det(10.0 + 3.0 * n as f64, 50.0 + 0.5 * n as f64, 3.0, 0.5);
+            let b = det(130.0 - 3.0 * n as f64, 70.0 - 0.5 * n as f64, -3.0, -0.5);
             // Object a is missed every 9th frame.
             let dets: Vec<Region> = if n % 9 == 4 { vec![b] } else { vec![a, b] };
             let out = tr.step(n, &dets, 5).unwrap();
-            if let Some(t) = out.iter().find(|t| {
-                t.estimate.centroid.0 < 200.0
-                    && (t.estimate.centroid.1 - (50.0 + 0.5 * n as f64)).abs() < 5.0
-            }) {
+            // The track nearest a's true centre, except where a and b coincide (n = 20).
+            let (ax, ay) = (10.0 + 3.0 * n as f64, 50.0 + 0.5 * n as f64);
+            let near =
+                |t: &&TrackEstimate| (t.estimate.centroid.0 - ax).hypot(t.estimate.centroid.1 - ay);
+            if let Some(t) = out.iter().min_by(|p, q| near(p).total_cmp(&near(q)))
+                && near(&t) < 5.0
+                && n.abs_diff(20) > 1
+            {
                 ids_a.push(t.id);
             }
         }
         ids_a.dedup();
         assert_eq!(ids_a.len(), 1, "object a changed ID: {ids_a:?}");
+    }
+
+    #[test]
+    fn a_blob_that_does_not_move_as_its_flow_says_is_never_confirmed() {
+        let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
+        for n in 0..30 {
+            // A real mover, a blob that stays put while its flow says 3 px/frame, and a
+            // fragment of the mover's region beside it.
+            let mover = det(20.0 + 3.0 * n as f64, 40.0, 3.0, 0.0);
+            let blob = det(150.0 + 0.3 * (n % 2) as f64, 90.0, 3.0, 0.0);
+            let fragment = det(20.0 + 3.0 * n as f64 + 12.0, 52.0, 3.0, 0.0);
+            let out = tr.step(n, &[mover, blob, fragment], 3).unwrap();
+            assert!(out.len() <= 1, "frame {n}: {out:?}");
+            if n >= 4 {
+                assert_eq!(out.len(), 1, "frame {n}");
+                assert!((out[0].estimate.centroid.1 - 40.0).abs() < 1.0);
+                assert_eq!(out[0].id, 1);
+            }
+            if n >= 5 {
+                assert!(tr.held.iter().any(|h| h.reason.contains("inconsistent")));
+            }
+        }
+        for c in [
+            TrackerConfig {
+                consistency_px: f64::NAN,
+                ..TrackerConfig::default()
+            },
+            TrackerConfig {
+                max_gate_factor: 0.5,
+                ..TrackerConfig::default()
+            },
+        ] {
+            assert!(Tracker::new(c).is_err());
+        }
     }
 }

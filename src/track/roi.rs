@@ -19,27 +19,53 @@ pub struct Region {
     pub direction: Option<f64>,
     /// `[x_min, y_min, x_max, y_max]`.
     pub bbox: [usize; 4],
+    /// Mean flow vector (px/frame): the region's displacement to the next frame.
+    pub mean_flow: (f64, f64),
 }
 
 /// All regions with at least `min_area` pixels whose |flow| > `threshold`, largest first.
 /// Unknown vectors (NaN, as readers return them) are not moving: they join no region.
 pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Region>> {
+    Ok(regions_of(flow, flow, threshold, min_area)?
+        .into_iter()
+        .map(|(r, _)| r)
+        .collect())
+}
+
+/// Regions where |`test`| > `threshold`, each with its pixels (flat indices); the statistics
+/// (speed, direction, mean flow) are those of `stats`, of the same size. With a background
+/// model, `test` is the flow relative to the background and `stats` the flow in the image.
+pub fn regions_of(
+    test: &Flow,
+    stats: &Flow,
+    threshold: f64,
+    min_area: usize,
+) -> Result<Vec<(Region, Vec<usize>)>> {
     if !(threshold.is_finite() && threshold >= 0.0) {
         return Err(Error::invalid(
             "flow threshold",
             format!("must be finite and >= 0, got {threshold}"),
         ));
     }
-    let (h, w) = (flow.height(), flow.width());
-    let (u, v) = (flow.u(), flow.v());
-    let moving: Vec<bool> = u
+    let (h, w) = (test.height(), test.width());
+    if (stats.height(), stats.width()) != (h, w) {
+        return Err(Error::shape(
+            "region statistics flow",
+            format!("{w}x{h}"),
+            format!("{}x{}", stats.width(), stats.height()),
+        ));
+    }
+    let moving: Vec<bool> = test
+        .u()
         .iter()
-        .zip(v)
-        .map(|(a, b)| {
+        .zip(test.v())
+        .zip(stats.u().iter().zip(stats.v()))
+        .map(|((a, b), (c, d))| {
             let m = ((a * a + b * b) as f64).sqrt();
-            m.is_finite() && m > threshold
+            m.is_finite() && m > threshold && c.is_finite() && d.is_finite()
         })
         .collect();
+    let (u, v) = (stats.u(), stats.v());
     let mut label = vec![false; h * w];
     let mut out = Vec::new();
     for start in 0..h * w {
@@ -48,16 +74,20 @@ pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Regio
         }
         label[start] = true;
         let mut stack = vec![start];
-        let (mut n, mut sx, mut sy, mut ss, mut cx, mut cy) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut members = Vec::new();
+        let (mut sx, mut sy, mut ss, mut cx, mut cy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut su, mut sv) = (0.0, 0.0);
         let mut bbox = [w, h, 0, 0];
         while let Some(p) = stack.pop() {
+            members.push(p);
             let (x, y) = (p % w, p / w);
             let (fu, fv) = (u[p] as f64, v[p] as f64);
             let m = (fu * fu + fv * fv).sqrt();
-            n += 1;
             sx += x as f64;
             sy += y as f64;
             ss += m;
+            su += fu;
+            sv += fv;
             if m > 0.0 {
                 cx += fu / m;
                 cy += fv / m;
@@ -81,18 +111,24 @@ pub fn regions(flow: &Flow, threshold: f64, min_area: usize) -> Result<Vec<Regio
                 }
             }
         }
+        let n = members.len();
         if n >= min_area.max(1) {
             let resultant = (cx * cx + cy * cy).sqrt() / n as f64;
-            out.push(Region {
-                pixels: n,
-                centroid: (sx / n as f64, sy / n as f64),
-                speed: ss / n as f64,
-                direction: (resultant > 1e-9).then(|| cy.atan2(cx)),
-                bbox,
-            });
+            let nf = n as f64;
+            out.push((
+                Region {
+                    pixels: n,
+                    centroid: (sx / nf, sy / nf),
+                    speed: ss / nf,
+                    direction: (resultant > 1e-9).then(|| cy.atan2(cx)),
+                    bbox,
+                    mean_flow: (su / nf, sv / nf),
+                },
+                members,
+            ));
         }
     }
-    out.sort_by_key(|r| std::cmp::Reverse(r.pixels));
+    out.sort_by_key(|r| std::cmp::Reverse(r.0.pixels));
     Ok(out)
 }
 

@@ -6,10 +6,13 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::multi::{Tracker, TrackerConfig};
-use super::roi::regions;
+use super::detect::{DetectConfig, detect};
+use super::multi::{Assignment, Held, Tracker, TrackerConfig};
+use super::photometric::GreyPair;
+use super::static_flow::{BackgroundFlow, StaticFlow};
 use crate::error::{Error, Result};
 use crate::io;
+use crate::scene::truth::Truth;
 use crate::types::Flow;
 
 /// One object in one frame, as written to `tracks.json`.
@@ -42,6 +45,9 @@ pub struct Tracks {
     /// Wall time of detection, filtering and prediction per frame (flow estimation excluded).
     #[serde(default)]
     pub ms_per_frame: Option<f64>,
+    /// The background-flow magnitude of the flows tracked, when a truth was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub background_flow: Option<BackgroundFlow>,
 }
 
 impl Tracks {
@@ -64,6 +70,58 @@ pub struct TrackOptions {
     /// on an exact flow of a still background this changes nothing. 0 turns it off.
     pub noise_k: f64,
     pub min_area: usize,
+    /// The background model and the photometric test.
+    pub detect: DetectConfig,
+    /// Keep every frame's regions and verdicts (`TrackRun::debug`).
+    pub debug: bool,
+}
+
+/// One frame's flow (frame n → n + 1), with the two frames when the photometric test is to run.
+pub struct FlowStep {
+    pub name: String,
+    pub flow: Flow,
+    pub frames: Option<GreyPair>,
+}
+
+/// A run's result: the tracks, and per frame the regions and what became of them (when
+/// `TrackOptions::debug` is set).
+pub struct TrackRun {
+    pub tracks: Tracks,
+    pub debug: Vec<DebugFrame>,
+}
+
+/// One line of `regions.jsonl`.
+#[derive(Clone, Debug, Serialize)]
+pub struct DebugFrame {
+    pub frame: usize,
+    /// The magnitude threshold used (px/frame, relative to the background).
+    pub threshold: f64,
+    /// The background model's flow at the frame centre and its largest magnitude at a corner.
+    pub background_centre: [f64; 2],
+    pub background_max: f64,
+    pub regions: Vec<DebugRegion>,
+    /// Tentative tracks with a full but inconsistent confirmation window.
+    pub held: Vec<Held>,
+}
+
+/// One region in `regions.jsonl`.
+#[derive(Clone, Debug, Serialize)]
+pub struct DebugRegion {
+    /// `[x_min, y_min, x_max, y_max]`.
+    pub bbox: [usize; 4],
+    pub area: usize,
+    pub centroid: [f64; 2],
+    pub mean_flow: [f64; 2],
+    pub speed: f64,
+    /// Mean warp residual with the region's flow and with the background's motion, and their
+    /// ratio (null without frames).
+    pub residual_flow: Option<f64>,
+    pub residual_background: Option<f64>,
+    pub residual_ratio: Option<f64>,
+    pub accepted: bool,
+    pub reason: String,
+    /// The track it went to (accepted regions only).
+    pub track: Option<Assignment>,
 }
 
 /// The `.flo` files of a folder, sorted by name.
@@ -83,21 +141,63 @@ pub fn flow_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
-/// Tracks a folder of flows.
-pub fn track_flows(files: &[PathBuf], opts: &TrackOptions) -> Result<Tracks> {
-    track_sequence(
-        files
-            .iter()
-            .map(|f| Ok((f.display().to_string(), io::read_flow(f)?))),
-        opts,
-    )
+/// Tracks a folder of flows (with the frames, `frames.len() == files.len() + 1`, for the
+/// photometric test).
+pub fn track_flows(
+    files: &[PathBuf],
+    frames: Option<&[PathBuf]>,
+    opts: &TrackOptions,
+    truth: Option<&Truth>,
+) -> Result<TrackRun> {
+    if let Some(fr) = frames
+        && fr.len() != files.len() + 1
+    {
+        return Err(Error::invalid(
+            "--frames",
+            format!(
+                "{} frames for {} flows: need one frame more than flows",
+                fr.len(),
+                files.len()
+            ),
+        ));
+    }
+    let mut prev: Option<super::photometric::GreyFrame> = None;
+    let steps = files.iter().enumerate().map(move |(n, f)| {
+        let flow = io::read_flow(f)?;
+        let pair = match frames {
+            Some(fr) => {
+                let a = match prev.take() {
+                    Some(a) => a,
+                    None => super::photometric::GreyFrame::new(&io::read_image(&fr[n])?),
+                };
+                let b = super::photometric::GreyFrame::new(&io::read_image(&fr[n + 1])?);
+                let pair = GreyPair::of(&a, &b).ok_or_else(|| {
+                    Error::invalid(
+                        format!("frames {} and {}", fr[n].display(), fr[n + 1].display()),
+                        "differ in size or are empty",
+                    )
+                })?;
+                prev = Some(b);
+                Some(pair)
+            }
+            None => None,
+        };
+        Ok(FlowStep {
+            name: f.display().to_string(),
+            flow,
+            frames: pair,
+        })
+    });
+    track_sequence(steps, opts, truth)
 }
 
-/// Tracks a sequence of named flows (frame n → n + 1, in order).
+/// Tracks a sequence of flows (frame n → n + 1, in order). With a truth, the background-flow
+/// magnitude of the flows is measured too (`Tracks::background_flow`).
 pub fn track_sequence(
-    flows: impl Iterator<Item = Result<(String, Flow)>>,
+    flows: impl Iterator<Item = Result<FlowStep>>,
     opts: &TrackOptions,
-) -> Result<Tracks> {
+    truth: Option<&Truth>,
+) -> Result<TrackRun> {
     if opts.horizons.is_empty() || opts.horizons.iter().any(|&h| h == 0 || h > 10_000) {
         return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
     }
@@ -116,14 +216,20 @@ pub fn track_sequence(
             format!("must be a finite number >= 0, got {}", opts.noise_k),
         ));
     }
+    opts.detect.validate()?;
     let max_h = *opts.horizons.iter().max().unwrap_or(&1);
     let mut tracker = Tracker::new(opts.tracker.clone())?;
     let mut objects: BTreeMap<usize, Vec<FrameRecord>> = BTreeMap::new();
     let mut size: Option<(usize, usize)> = None;
     let mut busy = std::time::Duration::ZERO;
     let mut count = 0usize;
+    let mut debug = Vec::new();
+    let mut still = truth
+        .map(|t| StaticFlow::new(t, STATIC_MARGIN_PX))
+        .transpose()?;
     for (frame, item) in flows.enumerate() {
-        let (name, flow) = item?;
+        let step = item?;
+        let (name, flow) = (&step.name, &step.flow);
         let started = std::time::Instant::now();
         let s = (flow.height(), flow.width());
         if let Some(first) = size
@@ -136,9 +242,25 @@ pub fn track_sequence(
             ));
         }
         size = Some(s);
-        let threshold = opts.threshold.max(noise_floor(&flow, opts.noise_k));
-        let dets = regions(&flow, threshold, opts.min_area)
-            .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
+        if let Some(p) = &step.frames
+            && (p.width, p.height) != (s.1, s.0)
+        {
+            return Err(Error::shape(
+                format!("frames of flow {name}"),
+                format!("{}x{} (the flow)", s.1, s.0),
+                format!("{}x{}", p.width, p.height),
+            ));
+        }
+        let found = detect(
+            flow,
+            step.frames.as_ref(),
+            opts.threshold,
+            opts.noise_k,
+            opts.min_area,
+            &opts.detect,
+        )
+        .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
+        let dets = found.accepted();
         for t in tracker.step(frame, &dets, max_h)? {
             let e = &t.estimate;
             let predicted = opts
@@ -158,14 +280,71 @@ pub fn track_sequence(
         }
         busy += started.elapsed();
         count += 1;
+        if let Some(st) = still.as_mut() {
+            st.add(frame, flow)?;
+        }
+        if opts.debug {
+            let mut assigned = tracker.assignments.iter();
+            let (cx, cy) = ((s.1 as f64 - 1.0) / 2.0, (s.0 as f64 - 1.0) / 2.0);
+            let bc = found.background.at(cx, cy);
+            debug.push(DebugFrame {
+                frame,
+                threshold: found.threshold,
+                background_centre: [bc.0, bc.1],
+                background_max: found.background.max_magnitude(s.1, s.0),
+                regions: found
+                    .candidates
+                    .iter()
+                    .map(|c| {
+                        let r = &c.region;
+                        DebugRegion {
+                            bbox: r.bbox,
+                            area: r.pixels,
+                            centroid: [r.centroid.0, r.centroid.1],
+                            mean_flow: [r.mean_flow.0, r.mean_flow.1],
+                            speed: r.speed,
+                            residual_flow: c.residuals.map(|x| x.0),
+                            residual_background: c.residuals.map(|x| x.1),
+                            residual_ratio: c.ratio().filter(|r| r.is_finite()),
+                            accepted: c.accepted,
+                            reason: c.reason.clone(),
+                            // Accepted regions reach the tracker in the same order.
+                            track: if c.accepted {
+                                assigned.next().cloned().flatten()
+                            } else {
+                                None
+                            },
+                        }
+                    })
+                    .collect(),
+                held: tracker.held.clone(),
+            });
+        }
     }
-    Ok(Tracks {
-        ms_per_frame: Some(busy.as_secs_f64() * 1e3 / count.max(1) as f64),
-        objects: objects
-            .into_iter()
-            .map(|(id, frames)| ObjectTrack { id, frames })
-            .collect(),
+    Ok(TrackRun {
+        tracks: Tracks {
+            ms_per_frame: Some(busy.as_secs_f64() * 1e3 / count.max(1) as f64),
+            objects: objects
+                .into_iter()
+                .map(|(id, frames)| ObjectTrack { id, frames })
+                .collect(),
+            background_flow: still.and_then(|s| s.summary()),
+        },
+        debug,
     })
+}
+
+/// The margin (px) around each object, beyond its radius, that is not counted as static in the
+/// background-flow metric: the camera's blur spreads a mover over a few pixels.
+pub const STATIC_MARGIN_PX: f64 = 6.0;
+
+/// The background-flow magnitude of a folder of flows against a truth.
+pub fn background_flow(files: &[PathBuf], truth: &Truth) -> Result<Option<BackgroundFlow>> {
+    let mut s = StaticFlow::new(truth, STATIC_MARGIN_PX)?;
+    for (n, f) in files.iter().enumerate() {
+        s.add(n, &io::read_flow(f)?)?;
+    }
+    Ok(s.summary())
 }
 
 /// Median flow magnitude plus `k` robust standard deviations (1.4826 × the median absolute

@@ -1,0 +1,208 @@
+//! The photometric test of a detection (issue 16; the brightness constancy behind every flow
+//! method, Note S9): frame 2 warped back with the region's flow should match frame 1 clearly
+//! better than frame 2 warped with the background's motion (zero for a still camera). A blob
+//! of spurious flow on a still background explains nothing: warping with it does not lower
+//! the residual, and the ratio of the two residuals stays near or above 1.
+
+use std::sync::Arc;
+
+use super::background::GlobalMotion;
+use crate::types::{Flow, Image};
+
+/// One frame as a grey plane, lightly smoothed (3×3 box) against sensor noise; cheap to clone.
+#[derive(Clone, Debug)]
+pub struct GreyFrame {
+    pub width: usize,
+    pub height: usize,
+    data: Arc<[f32]>,
+}
+
+impl GreyFrame {
+    pub fn new(img: &Image) -> Self {
+        let (h, w) = (img.height(), img.width());
+        Self {
+            width: w,
+            height: h,
+            data: smooth(&grey(img), w, h).into(),
+        }
+    }
+}
+
+/// Two consecutive frames.
+#[derive(Clone, Debug)]
+pub struct GreyPair {
+    pub width: usize,
+    pub height: usize,
+    a: Arc<[f32]>,
+    b: Arc<[f32]>,
+}
+
+impl GreyPair {
+    /// `None` when the frames differ in size or have no pixels.
+    pub fn new(first: &Image, second: &Image) -> Option<Self> {
+        Self::of(&GreyFrame::new(first), &GreyFrame::new(second))
+    }
+
+    /// `None` when the frames differ in size or have no pixels.
+    pub fn of(first: &GreyFrame, second: &GreyFrame) -> Option<Self> {
+        let (h, w) = (first.height, first.width);
+        if (second.height, second.width) != (h, w) || h == 0 || w == 0 {
+            return None;
+        }
+        Some(Self {
+            width: w,
+            height: h,
+            a: first.data.clone(),
+            b: second.data.clone(),
+        })
+    }
+
+    /// Mean |frame 1 − frame 2 warped by `flow`| and mean |frame 1 − frame 2 warped by
+    /// `null`| over `pixels` (flat indices), counting only pixels whose both samples land
+    /// inside the frame and whose flow is known; `None` when no pixel counts.
+    pub fn residuals(
+        &self,
+        pixels: &[usize],
+        flow: &Flow,
+        null: &GlobalMotion,
+    ) -> Option<(f64, f64)> {
+        let (w, h) = (self.width, self.height);
+        if (flow.width(), flow.height()) != (w, h) {
+            return None;
+        }
+        let (u, v) = (flow.u(), flow.v());
+        let (mut sf, mut sn, mut n) = (0.0f64, 0.0f64, 0usize);
+        for &p in pixels {
+            if p >= w * h {
+                continue;
+            }
+            let (x, y) = ((p % w) as f64, (p / w) as f64);
+            let (fu, fv) = (u[p] as f64, v[p] as f64);
+            let (nu, nv) = null.at(x, y);
+            if let (Some(bf), Some(bn)) = (self.sample(x + fu, y + fv), self.sample(x + nu, y + nv))
+            {
+                let a = self.a[p] as f64;
+                sf += (a - bf).abs();
+                sn += (a - bn).abs();
+                n += 1;
+            }
+        }
+        (n > 0).then(|| (sf / n as f64, sn / n as f64))
+    }
+
+    /// Frame 2 at (x, y), bilinear; `None` outside the frame or for a non-finite position.
+    fn sample(&self, x: f64, y: f64) -> Option<f64> {
+        let (w, h) = (self.width, self.height);
+        if !(x.is_finite() && y.is_finite())
+            || x < 0.0
+            || y < 0.0
+            || x > (w - 1) as f64
+            || y > (h - 1) as f64
+        {
+            return None;
+        }
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let at = |xx: usize, yy: usize| self.b[yy * w + xx] as f64;
+        Some(
+            (1.0 - fy) * ((1.0 - fx) * at(x0, y0) + fx * at(x1, y0))
+                + fy * ((1.0 - fx) * at(x0, y1) + fx * at(x1, y1)),
+        )
+    }
+}
+
+/// The mean of the channels, one plane `[H, W]`.
+fn grey(img: &Image) -> Vec<f32> {
+    let (c, n) = (img.channels().max(1), img.height() * img.width());
+    let mut g = vec![0.0f32; n];
+    for k in 0..img.channels() {
+        for (o, v) in g.iter_mut().zip(img.plane(k)) {
+            *o += v / c as f32;
+        }
+    }
+    g
+}
+
+/// A 3×3 box filter with the border clamped.
+fn smooth(p: &[f32], w: usize, h: usize) -> Vec<f32> {
+    if w == 0 || h == 0 {
+        return Vec::new();
+    }
+    let mut out = vec![0.0f32; p.len()];
+    for y in 0..h {
+        for x in 0..w {
+            let mut s = 0.0;
+            for dy in [-1i64, 0, 1] {
+                for dx in [-1i64, 0, 1] {
+                    let yy = (y as i64 + dy).clamp(0, h as i64 - 1) as usize;
+                    let xx = (x as i64 + dx).clamp(0, w as i64 - 1) as usize;
+                    s += p[yy * w + xx];
+                }
+            }
+            out[y * w + x] = s / 9.0;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A smooth texture shifted by `dx` px in a 10×10 square at (20, 20) of frame 2.
+    fn frames(dx: f64) -> (Image, Image) {
+        let tex = |x: f64, y: f64| 0.5 + 0.2 * (x * 0.7).sin() * (y * 0.45).cos();
+        let obj = |x: f64, y: f64| 0.5 + 0.3 * (x * 0.9 + 1.0).cos() * (y * 0.6).sin();
+        let (w, h) = (64, 48);
+        let (mut a, mut b) = (Image::zeros(1, h, w), Image::zeros(1, h, w));
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f64, y as f64);
+                let in_a = (20.0..30.0).contains(&xf) && (20.0..30.0).contains(&yf);
+                let in_b = (20.0 + dx..30.0 + dx).contains(&xf) && (20.0..30.0).contains(&yf);
+                a.set(0, y, x, if in_a { obj(xf, yf) } else { tex(xf, yf) } as f32);
+                b.set(
+                    0,
+                    y,
+                    x,
+                    if in_b { obj(xf - dx, yf) } else { tex(xf, yf) } as f32,
+                );
+            }
+        }
+        (a, b)
+    }
+
+    #[test]
+    fn the_true_flow_explains_the_change_and_spurious_flow_does_not() {
+        let (a, b) = frames(3.0);
+        let pair = GreyPair::new(&a, &b).unwrap();
+        let w = 64;
+        let mut flow = Flow::zeros(48, 64);
+        let mover: Vec<usize> = (22..28)
+            .flat_map(|y| (22..28).map(move |x| y * w + x))
+            .collect();
+        for &p in &mover {
+            flow.set(p / w, p % w, 3.0, 0.0);
+        }
+        // Spurious flow on the still background.
+        let blob: Vec<usize> = (5..15)
+            .flat_map(|y| (40..50).map(move |x| y * w + x))
+            .collect();
+        for &p in &blob {
+            flow.set(p / w, p % w, 1.5, -1.0);
+        }
+        let zero = GlobalMotion::zero();
+        let (rf, rn) = pair.residuals(&mover, &flow, &zero).unwrap();
+        assert!(rf < 0.3 * rn, "mover: {rf} vs {rn}");
+        let (rf, rn) = pair.residuals(&blob, &flow, &zero).unwrap();
+        assert!(rf > rn, "blob: {rf} vs {rn}");
+        // Outside pixels, unknown flow and a size mismatch count nothing.
+        let mut out = Flow::zeros(48, 64);
+        out.set(0, 0, -5.0, 0.0);
+        out.set(0, 1, f32::NAN, 0.0);
+        assert!(pair.residuals(&[0, 1, 99_999], &out, &zero).is_none());
+        assert!(pair.residuals(&mover, &Flow::zeros(4, 4), &zero).is_none());
+        assert!(GreyPair::new(&a, &Image::zeros(1, 4, 4)).is_none());
+    }
+}
