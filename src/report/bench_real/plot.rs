@@ -1,5 +1,6 @@
 //! The EPE-against-time plots of the real-data benchmark, one per camera: MMS at each iteration
-//! count as a line, each peer and the zero flow as a point, all as means over the sets.
+//! count as a line, each peer and the zero flow as a point, all over the known pixels of every
+//! set pooled (the "all known pixels" rows of the summary).
 
 use std::path::{Path, PathBuf};
 
@@ -15,7 +16,7 @@ pub fn write(r: &BenchRealReport, dir: &Path) -> Result<Vec<PathBuf>> {
             .summary
             .iter()
             .filter(|s| &s.camera == cam)
-            .map(|s| &s.scores)
+            .map(|s| &s.pooled)
             .collect();
         if rows.is_empty() {
             continue;
@@ -49,9 +50,15 @@ pub fn write(r: &BenchRealReport, dir: &Path) -> Result<Vec<PathBuf>> {
             });
         }
         let sets = r.runs.iter().filter(|x| &x.camera == cam).count();
+        let pixels: u64 = r
+            .runs
+            .iter()
+            .filter(|x| &x.camera == cam)
+            .map(|x| x.pixels)
+            .sum();
         let png = dir.join(format!("epe_vs_ms_{cam}.png"));
         Chart {
-            title: format!("EPE against run time, {cam}: mean of {sets} real sets"),
+            title: format!("EPE against run time, {cam}: {pixels} known pixels of {sets} sets"),
             x_label: "ms per pair".into(),
             y_label: "EPE (px)".into(),
             series,
