@@ -12,8 +12,8 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use cli::array::{ArrayCommand, array};
 use cli::data::{BenchArgs, GenerateArgs, PsfArgs, SimulateArgs, bench, generate, psf, simulate};
 use cli::flow::{
-    BenchFlowArgs, BenchRealArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs, bench_flow,
-    bench_real, eval, export, infer, train,
+    BenchFlowArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs,
+    bench_flow, bench_real, detect_limits, eval, export, infer, train,
 };
 use cli::optics::{CompareArgs, OpticsCommand, compare, optics};
 use cli::track::{TrackArgs, track};
@@ -53,6 +53,9 @@ enum Command {
     /// Benchmark MMS, OpenCV DIS/Farneback and zero flow on real pairs, clean and through the
     /// camera: per-set and per-pair EPE, 1/3/5 px, ms per pair, and EPE-against-time plots.
     BenchReal(BenchRealArgs),
+    /// Note S12's detection limits through the network (Fig. S10 a-g): flow magnitude and
+    /// direction error on the moving region, share detected, false-motion area.
+    DetectLimits(DetectLimitsArgs),
     /// SSIM, MAE and MSE of two images (Note S7).
     Compare(CompareArgs),
     /// Optics calculators: depth of field, detection limits, stereo depth, field of view.
@@ -124,6 +127,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Eval(a) => eval(a),
         Command::BenchFlow(a) => bench_flow(a),
         Command::BenchReal(a) => bench_real(a),
+        Command::DetectLimits(a) => detect_limits(a),
         Command::Compare(a) => compare(a),
         Command::Optics(c) => optics(c),
         Command::Array(c) => array(c),

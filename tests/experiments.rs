@@ -1,5 +1,6 @@
 //! Every shipped experiment config parses, validates and names only known keys: training
-//! configs (`train_*` with a model), tracking clips and tracking experiments (`track_*`), and generator
+//! configs (`train_*` with a model), tracking clips and tracking experiments (`track_*`), the
+//! real-data benchmark (`bench_real*`), Note S12's detection limits (`s12_limits*`) and generator
 //! configs (everything else).
 
 use std::path::Path;
@@ -27,6 +28,10 @@ fn every_experiment_config_is_valid() {
                 pins::track::experiment::ExperimentConfig::from_file(&p).unwrap_or_else(fail(&p));
             assert!(!cfg.clips.is_empty() && !cfg.predictors.is_empty());
             tracking += 1;
+        } else if name.starts_with("bench_real") {
+            pins::report::bench_real::config::load(&p).unwrap_or_else(fail(&p));
+        } else if name.starts_with("s12_limits") {
+            pins::flow::limits::LimitsConfig::from_file(&p).unwrap_or_else(fail(&p));
         } else if name.starts_with("track_") {
             pins::dataset::sequence::SequenceConfig::from_file(&p).unwrap_or_else(fail(&p));
             clips += 1;

@@ -1,4 +1,4 @@
-//! Detection that does not believe every blob (issue 16), end to end through `pins track`: a
+//! Detection that does not believe every blob, end to end through `pins track`: a
 //! small clip rendered through the default camera with a seed the defaults were not tuned on,
 //! its exact flow spoiled like a bad estimator's (spurious blobs on the still background,
 //! jitter, a global affine motion), and the checks that the blobs are rejected (photometric

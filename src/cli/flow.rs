@@ -1,4 +1,5 @@
-//! Commands of the MMS flow network: train, export, infer, eval, bench-flow, bench-real.
+//! Commands of the MMS flow network: train, export, infer, eval, bench-flow, bench-real,
+//! detect-limits.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -47,6 +48,26 @@ pub(crate) struct BenchRealArgs {
     /// Python interpreter for the OpenCV peers (scripts/flow_baselines.py, built in).
     #[arg(long, default_value = "python3")]
     python: String,
+    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct DetectLimitsArgs {
+    /// Experiment config (JSON): cases, camera, iteration counts, detection rule; Note S12's
+    /// six cases through the default camera when absent (experiments/s12_limits.json).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Output folder: report.json, report.md and fig_s10.png.
+    #[arg(long)]
+    out: PathBuf,
+    /// Weights file, or "default".
+    #[arg(long, default_value = "default")]
+    weights: String,
+    /// Iteration counts; override the config's.
+    #[arg(long, value_delimiter = ',')]
+    iters: Option<Vec<usize>>,
     /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -326,5 +347,33 @@ pub(crate) fn bench_real(a: BenchRealArgs) -> Result<()> {
         report.skipped.len(),
         started.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+pub(crate) fn detect_limits(a: DetectLimitsArgs) -> Result<()> {
+    use pins::flow::{infer::Predictor, limits};
+    let mut cfg = match &a.config {
+        Some(p) => limits::LimitsConfig::from_file(p)?,
+        None => limits::LimitsConfig::default(),
+    };
+    if let Some(iters) = &a.iters {
+        cfg.iters = iters.clone();
+    }
+    cfg.validate()?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
+    let runs = limits::run(&cfg, &predictor)?;
+    let scores: Vec<_> = runs.iter().flat_map(|r| r.scores.clone()).collect();
+    let table = limits::markdown(&scores, &cfg);
+    print!("{table}");
+    std::fs::create_dir_all(&a.out)?;
+    let json = serde_json::json!({"config": cfg, "weights": a.weights, "scores": scores});
+    io::write_bytes_atomic(
+        &a.out.join("report.json"),
+        serde_json::to_string_pretty(&json)?.as_bytes(),
+    )?;
+    io::write_bytes_atomic(&a.out.join("report.md"), table.as_bytes())?;
+    let fig = a.out.join("fig_s10.png");
+    io::write_image(&fig, &limits::figure(&runs), BitDepth::Eight)?;
+    println!("{}", fig.display());
     Ok(())
 }

@@ -10,6 +10,8 @@ use crate::scene::ChairsConfig;
 use crate::scene::patterns::RocketStep;
 
 /// The scene family of a dataset.
+// One config per run: the size of the largest variant does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum SceneSpec {

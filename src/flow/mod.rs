@@ -6,6 +6,7 @@ pub mod device;
 pub mod eval;
 pub mod infer;
 pub mod kernels;
+pub mod limits;
 pub mod loss;
 pub mod metrics;
 pub mod model;

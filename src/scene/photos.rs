@@ -57,6 +57,9 @@ pub struct Photo {
     pub image: Image,
 }
 
+/// Libraries read so far, by their folders.
+type Cache = HashMap<Vec<PathBuf>, Arc<Vec<Photo>>>;
+
 const EXTENSIONS: [&str; 8] = ["png", "jpg", "jpeg", "ppm", "pgm", "pnm", "tif", "tiff"];
 
 impl PhotoTextures {
@@ -95,7 +98,7 @@ impl PhotoTextures {
 
     /// The photographs of every folder, read once per process and shared.
     pub fn library(&self) -> Result<Arc<Vec<Photo>>> {
-        static CACHE: OnceLock<Mutex<HashMap<Vec<PathBuf>, Arc<Vec<Photo>>>>> = OnceLock::new();
+        static CACHE: OnceLock<Mutex<Cache>> = OnceLock::new();
         let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
         if let Some(lib) = cache
             .lock()
@@ -339,7 +342,9 @@ mod tests {
         }
         let empty = std::env::temp_dir().join(format!("pins-photos-empty-{}", std::process::id()));
         std::fs::create_dir_all(&empty).unwrap();
-        let err = read_photos(&[empty.clone()]).unwrap_err().to_string();
+        let err = read_photos(std::slice::from_ref(&empty))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("no photographs"), "{err}");
         std::fs::remove_dir_all(&empty).ok();
     }

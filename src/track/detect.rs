@@ -1,4 +1,4 @@
-//! Detection that does not believe every blob (Note S13's region of interest, issue 16): the
+//! Detection that does not believe every blob (Note S13's region of interest): the
 //! background's global motion is fitted and subtracted, the magnitude threshold (raised to the
 //! frame's robust noise floor) cuts regions, and each region must pass the photometric test
 //! (warping frame 2 with its flow explains the change better than the background's motion)

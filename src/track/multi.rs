@@ -1,7 +1,7 @@
 //! Many objects (Movie S2): every region above a minimum area is a detection; tracks keep
 //! their IDs through optimal assignment on the distance to each track's predicted position,
 //! with a gate; a track is confirmed after `confirm` consecutive hits whose motion is
-//! consistent (issue 16: the centre moved as the regions' flow said it would, which a blob of
+//! consistent (the centre moved as the regions' flow said it would, which a blob of
 //! spurious flow on a still background does not do) and ended after `patience` consecutive
 //! misses, so one missed detection does not change an ID. IDs are given at confirmation. When
 //! two objects merge into one region, the tracks on it coast until it splits. Each track has

@@ -1,4 +1,4 @@
-//! The photometric test of a detection (issue 16; the brightness constancy behind every flow
+//! The photometric test of a detection (the brightness constancy behind every flow
 //! method, Note S9): frame 2 warped back with the region's flow should match frame 1 clearly
 //! better than frame 2 warped with the background's motion (zero for a still camera). A blob
 //! of spurious flow on a still background explains nothing: warping with it does not lower

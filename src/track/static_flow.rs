@@ -1,4 +1,4 @@
-//! The background-flow magnitude (issue 16): how much motion a flow reports where nothing
+//! The background-flow magnitude: how much motion a flow reports where nothing
 //! moves. Over the truly static pixels of a rendered clip (farther than the object's radius
 //! plus a margin, for the camera's blur, from every object's centre in both frames of the
 //! pair: the exact flow there is zero), the mean and the 99th percentile of |flow|, pooled

@@ -1,6 +1,6 @@
 //! `pins bench-real`: MMS against OpenCV's DIS and Farneback and the zero flow on real image
 //! pairs with exact ground truth (and any set the generator can make), clean and through the
-//! camera, per set and per pair, with EPE-against-time plots (issue 15, Table S4's measures).
+//! camera, per set and per pair, with EPE-against-time plots (with Table S4's measures).
 
 pub mod config;
 pub mod markdown;
