@@ -19,6 +19,7 @@
 //! | [`flow::data`], [`flow::eval`], [`flow::metrics`], [`flow::infer`], [`flow::weights`], [`flow::loss`], [`flow::viz`], [`flow::device`] | data loading, evaluation (Table S4), metrics, inference, weights files, Eq. S16, colour wheel, device choice |
 //! | [`wide`] | Notes S2, S3, S16: the 3-lens array, calibration, stitching to 135° |
 //! | [`track`] | Notes S13–S15: ROI, Kalman, polynomial fits, extrapolation, multi-object IDs (Table S5) |
+//! | [`live`] | Note S1: the ESP32 camera's MJPEG stream, recording/replay, the live pipeline and its browser view |
 //! | [`report`] | benchmarks, tables and plots |
 //! | [`report_timing`] | benchmark timing (median after warm-up) |
 
@@ -27,6 +28,7 @@ pub mod error;
 pub mod flow;
 pub mod imaging;
 pub mod io;
+pub mod live;
 pub mod optics;
 pub mod report;
 pub mod report_timing;

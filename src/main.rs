@@ -15,6 +15,7 @@ use cli::flow::{
     BenchFlowArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs,
     bench_flow, bench_real, detect_limits, eval, export, infer, train,
 };
+use cli::live::{LiveArgs, live};
 use cli::optics::{CompareArgs, OpticsCommand, compare, optics};
 use cli::track::{TrackArgs, track};
 
@@ -66,6 +67,9 @@ enum Command {
     Array(ArrayCommand),
     /// Track moving objects through a folder of flow maps and predict their trajectories (Note S13).
     Track(TrackArgs),
+    /// Read the ESP32 camera's MJPEG stream (or a recording), estimate flow, track and predict
+    /// live: one JSON line per processed frame, --record/--replay, a browser view (Note S1).
+    Live(LiveArgs),
 }
 
 /// mimalloc's `mi_option_purge_delay` (the 16th entry of `mi_option_e` in mimalloc.h, v2 and v3):
@@ -132,5 +136,6 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Optics(c) => optics(c),
         Command::Array(c) => array(c),
         Command::Track(a) => track(a),
+        Command::Live(a) => live(a),
     }
 }

@@ -3,5 +3,6 @@
 pub mod array;
 pub mod data;
 pub mod flow;
+pub mod live;
 pub mod optics;
 pub mod track;

@@ -1,0 +1,181 @@
+//! The live pipeline, one frame at a time: stitch (with a calibration) → downscale → MMS flow
+//! from the previous processed frame → tracker → one JSON line. The line of a flow is that of
+//! its first frame (as in `pins track`: the flow of frame n is its motion to frame n + 1), and
+//! is written once frame n + 1 has arrived. Velocities are in pixels per second of the frames'
+//! own time stamps (the camera's when it sends them, the arrival times otherwise).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::reader::{Counts, Frame};
+use super::resize::downscale;
+use super::tracking::{LiveTracker, Object};
+use crate::error::Result;
+use crate::flow::infer::Predictor;
+use crate::track::photometric::{GreyFrame, GreyPair};
+use crate::track::run::TrackOptions;
+use crate::types::{Flow, Image};
+use crate::wide::Stitcher;
+
+/// Settings of the pipeline.
+pub struct PipelineConfig {
+    pub scale: f64,
+    pub iters: usize,
+    pub stitcher: Option<Stitcher>,
+    pub track: TrackOptions,
+}
+
+/// One processed frame, one line of `tracks.jsonl`.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Line {
+    /// Processed-frame index (the first frame of the flow).
+    pub frame: usize,
+    /// The received frame's sequence number.
+    pub seq: u64,
+    pub timestamp_s: f64,
+    /// Frames received whole, dropped (replaced before processing) and skipped as bad so far.
+    pub received: u64,
+    pub dropped: u64,
+    pub bad: u64,
+    pub objects: Vec<LineObject>,
+    pub ms: Stages,
+}
+
+/// One object in a line.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LineObject {
+    pub id: usize,
+    pub centroid: [f64; 2],
+    /// Pixels per second.
+    pub velocity: [f64; 2],
+    pub predicted: BTreeMap<String, [f64; 2]>,
+}
+
+/// Milliseconds per stage for the frame that completed the flow, and its latency from arrival
+/// to this line.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct Stages {
+    pub prepare: f64,
+    pub flow: f64,
+    pub track: f64,
+    pub latency: f64,
+}
+
+/// The state between frames.
+pub struct Pipeline {
+    predictor: Predictor,
+    cfg: PipelineConfig,
+    tracker: LiveTracker,
+    prev: Option<Prepared>,
+    /// Processed frames so far.
+    count: usize,
+    /// The last flow and the frame it starts from, for the browser view.
+    pub last_flow: Option<(Image, Flow, Vec<Object>)>,
+    /// Frames whose size changed from the previous one (the tracker restarted).
+    pub size_changes: usize,
+}
+
+struct Prepared {
+    image: Image,
+    grey: GreyFrame,
+    index: usize,
+    seq: u64,
+    time_s: f64,
+    received_s: f64,
+}
+
+impl Pipeline {
+    pub fn new(predictor: Predictor, cfg: PipelineConfig) -> Result<Self> {
+        let tracker = LiveTracker::new(cfg.track.clone())?;
+        Ok(Self {
+            predictor,
+            cfg,
+            tracker,
+            prev: None,
+            count: 0,
+            last_flow: None,
+            size_changes: 0,
+        })
+    }
+
+    /// Processes one frame; a line once there is a previous frame to pair it with.
+    pub fn process(&mut self, f: &Frame, counts: Counts) -> Result<Option<Line>> {
+        let t0 = Instant::now();
+        let wide = match &self.cfg.stitcher {
+            Some(s) => s.apply(&f.image)?,
+            None => (*f.image).clone(),
+        };
+        let image = downscale(&wide, self.cfg.scale)?;
+        let cur = Prepared {
+            grey: GreyFrame::new(&image),
+            image,
+            index: self.count,
+            seq: f.seq,
+            time_s: f.camera_s.unwrap_or(f.received_s),
+            received_s: f.received_s,
+        };
+        self.count += 1;
+        let prepare = t0.elapsed().as_secs_f64() * 1e3;
+        let Some(prev) = self.prev.take() else {
+            self.prev = Some(cur);
+            return Ok(None);
+        };
+        if prev.image.shape() != cur.image.shape() {
+            // A new frame size (the camera was reconfigured): nothing carries over.
+            self.size_changes += 1;
+            self.tracker.reset()?;
+            self.prev = Some(cur);
+            return Ok(None);
+        }
+        let t1 = Instant::now();
+        let flow = self
+            .predictor
+            .predict(&prev.image, &cur.image, self.cfg.iters)?;
+        let flow_ms = t1.elapsed().as_secs_f64() * 1e3;
+        let t2 = Instant::now();
+        let pair = GreyPair::of(&prev.grey, &cur.grey);
+        let objects = self.tracker.step(prev.index, &flow, pair.as_ref())?;
+        let track_ms = t2.elapsed().as_secs_f64() * 1e3;
+        let dt = step_seconds(&prev, &cur);
+        let line = Line {
+            frame: prev.index,
+            seq: prev.seq,
+            timestamp_s: prev.time_s,
+            received: counts.received,
+            dropped: counts.dropped,
+            bad: counts.bad,
+            objects: objects
+                .iter()
+                .map(|o| LineObject {
+                    id: o.id,
+                    centroid: o.centroid,
+                    velocity: [o.velocity[0] / dt, o.velocity[1] / dt],
+                    predicted: o.predicted.clone(),
+                })
+                .collect(),
+            ms: Stages {
+                prepare,
+                flow: flow_ms,
+                track: track_ms,
+                latency: f.arrived.elapsed().as_secs_f64() * 1e3,
+            },
+        };
+        self.last_flow = Some((prev.image, flow, objects));
+        self.prev = Some(cur);
+        Ok(Some(line))
+    }
+}
+
+/// The time between two processed frames: the camera's clock when it gives a plausible step
+/// (0 < dt ≤ 10 s), otherwise the arrival times, never below 1 ms.
+fn step_seconds(a: &Prepared, b: &Prepared) -> f64 {
+    let cam = b.time_s - a.time_s;
+    let dt = if cam > 0.0 && cam <= 10.0 {
+        cam
+    } else {
+        b.received_s - a.received_s
+    };
+    if dt.is_finite() { dt.max(1e-3) } else { 1e-3 }
+}

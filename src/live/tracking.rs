@@ -1,0 +1,107 @@
+//! The tracker of `pins track`, fed one flow at a time: the same detection (background model,
+//! noise floor, photometric test) and the same multi-object tracker as
+//! `track::run::track_sequence`, which only takes a whole sequence, so a live run can write each
+//! frame's objects as soon as its flow exists.
+
+use std::collections::BTreeMap;
+
+use crate::error::{Error, Result};
+use crate::track::detect::detect;
+use crate::track::multi::Tracker;
+use crate::track::photometric::GreyPair;
+use crate::track::run::TrackOptions;
+use crate::types::Flow;
+
+/// One confirmed object after one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    pub id: usize,
+    pub centroid: [f64; 2],
+    /// Pixels per frame step (the region's flow, filtered).
+    pub velocity: [f64; 2],
+    pub observed: bool,
+    /// Horizon (frames, as a string) → predicted centroid.
+    pub predicted: BTreeMap<String, [f64; 2]>,
+    /// Predicted centroids 1 … max horizon frames ahead.
+    pub path: Vec<[f64; 2]>,
+}
+
+/// The incremental tracker.
+pub struct LiveTracker {
+    tracker: Tracker,
+    opts: TrackOptions,
+    max_h: usize,
+}
+
+impl LiveTracker {
+    /// Checks the options as `track_sequence` does.
+    pub fn new(opts: TrackOptions) -> Result<Self> {
+        if opts.horizons.is_empty() || opts.horizons.iter().any(|&h| h == 0 || h > 10_000) {
+            return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
+        }
+        if !(opts.threshold.is_finite() && opts.threshold >= 0.0) {
+            return Err(Error::invalid(
+                "--threshold",
+                format!(
+                    "must be a finite number >= 0 (px/frame), got {}",
+                    opts.threshold
+                ),
+            ));
+        }
+        if !(opts.noise_k.is_finite() && opts.noise_k >= 0.0) {
+            return Err(Error::invalid(
+                "--noise-k",
+                format!("must be a finite number >= 0, got {}", opts.noise_k),
+            ));
+        }
+        opts.detect.validate()?;
+        let max_h = opts.horizons.iter().copied().max().unwrap_or(1);
+        Ok(Self {
+            tracker: Tracker::new(opts.tracker.clone())?,
+            opts,
+            max_h,
+        })
+    }
+
+    /// Starts over (a new frame size): no track survives.
+    pub fn reset(&mut self) -> Result<()> {
+        self.tracker = Tracker::new(self.opts.tracker.clone())?;
+        Ok(())
+    }
+
+    /// Tracks the flow from frame `frame` to the next; `pair` (the two frames) runs the
+    /// photometric test.
+    pub fn step(
+        &mut self,
+        frame: usize,
+        flow: &Flow,
+        pair: Option<&GreyPair>,
+    ) -> Result<Vec<Object>> {
+        let o = &self.opts;
+        let found = detect(flow, pair, o.threshold, o.noise_k, o.min_area, &o.detect)?;
+        let dets = found.accepted();
+        let out = self.tracker.step(frame, &dets, self.max_h)?;
+        Ok(out
+            .into_iter()
+            .map(|t| {
+                let e = &t.estimate;
+                let velocity = match e.direction {
+                    Some(d) => [e.speed * d.cos(), e.speed * d.sin()],
+                    None => [0.0, 0.0],
+                };
+                Object {
+                    id: t.id,
+                    centroid: [e.centroid.0, e.centroid.1],
+                    velocity,
+                    observed: t.observed,
+                    predicted: o
+                        .horizons
+                        .iter()
+                        .filter_map(|&h| e.path.get(h - 1).map(|p| (h.to_string(), [p.0, p.1])))
+                        .collect(),
+                    path: e.path.iter().map(|p| [p.0, p.1]).collect(),
+                }
+            })
+            .collect())
+    }
+}
