@@ -1,0 +1,193 @@
+//! End to end: a moving scene served as the ESP32 would serve it gives the same tracks live
+//! (`pins live --url … --record R`) as from the recording (`pins live --replay R`); the browser
+//! view's endpoints answer while a live run is going.
+
+mod live_server;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use live_server::{esp32_head, esp32_part, jpeg, server};
+
+const FRAMES: usize = 10;
+
+/// The scene: a bright square crossing a textured background, 3 px per frame.
+fn scene() -> Vec<Vec<u8>> {
+    (0..FRAMES)
+        .map(|k| jpeg(160, 120, 40 + 3 * k as i64, 60))
+        .collect()
+}
+
+fn camera(pause: Duration) -> (String, std::thread::JoinHandle<()>) {
+    let frames = scene();
+    server(1, move |_, mut s| {
+        if esp32_head(&mut s).is_err() {
+            return;
+        }
+        for (k, f) in frames.iter().enumerate() {
+            if esp32_part(&mut s, f, 5_000_000 + k as u64 * 66_667).is_err() {
+                return;
+            }
+            std::thread::sleep(pause);
+        }
+        std::thread::sleep(Duration::from_secs(2));
+    })
+}
+
+/// The comparable part of each line: frame, seq, time stamp and objects.
+fn tracks(path: &std::path::Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            serde_json::json!([v["frame"], v["seq"], v["timestamp_s"], v["objects"]])
+        })
+        .collect()
+}
+
+fn pins() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_pins"));
+    c.args(["live", "--iters", "4", "--confirm", "2", "--quiet"]);
+    c
+}
+
+#[test]
+fn live_and_replay_give_the_same_tracks() {
+    let dir = tempfile::tempdir().unwrap();
+    let (rec, live_out, replay_out) = (
+        dir.path().join("rec"),
+        dir.path().join("live"),
+        dir.path().join("replay"),
+    );
+    let (url, h) = camera(Duration::from_millis(250));
+    let st = pins()
+        .args([
+            "--url",
+            &url,
+            "--duration",
+            "60",
+            "--max-frames",
+            &FRAMES.to_string(),
+        ])
+        .arg("--record")
+        .arg(&rec)
+        .arg("--out")
+        .arg(&live_out)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    h.join().unwrap();
+    let st = pins()
+        .arg("--replay")
+        .arg(&rec)
+        .arg("--out")
+        .arg(&replay_out)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let (a, b) = (
+        tracks(&live_out.join("tracks.jsonl")),
+        tracks(&replay_out.join("tracks.jsonl")),
+    );
+    assert!(!a.is_empty());
+    assert_eq!(a, b, "live and replay differ");
+    assert!(!live_out.join("tracks.jsonl.part").exists());
+    // Velocities are in pixels per second of the camera's clock: the square moves 3 px per
+    // 66.667 ms, 45 px/s, once a track is confirmed.
+    let last: serde_json::Value = serde_json::from_str(
+        std::fs::read_to_string(live_out.join("tracks.jsonl"))
+            .unwrap()
+            .lines()
+            .last()
+            .unwrap(),
+    )
+    .unwrap();
+    eprintln!("last live line: {last}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(live_out.join("summary.json")).unwrap())
+            .unwrap();
+    eprintln!("summary: {summary}");
+}
+
+fn http_get(addr: &str, path: &str, max: usize) -> String {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n").unwrap();
+    let mut buf = vec![0u8; max];
+    let mut got = 0;
+    let end = Instant::now() + Duration::from_secs(10);
+    while got < max && Instant::now() < end {
+        match s.read(&mut buf[got..]) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => got += n,
+        }
+    }
+    String::from_utf8_lossy(&buf[..got]).to_string()
+}
+
+#[test]
+fn the_browser_view_serves_the_page_the_frames_and_the_figures() {
+    let (url, h) = camera(Duration::from_millis(300));
+    let mut child = pins()
+        .args([
+            "--url",
+            &url,
+            "--duration",
+            "60",
+            "--max-frames",
+            &FRAMES.to_string(),
+        ])
+        .args(["--serve", "127.0.0.1:0"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut addr = None;
+    for _ in 0..20 {
+        let mut l = String::new();
+        if err.read_line(&mut l).unwrap_or(0) == 0 {
+            break;
+        }
+        if let Some(a) = l.trim().strip_prefix("live: view at http://") {
+            addr = Some(a.trim_end_matches('/').to_string());
+            break;
+        }
+    }
+    let addr = addr.expect("the view's address on stderr");
+    let page = http_get(&addr, "/", 1 << 16);
+    assert!(
+        page.starts_with("HTTP/1.1 200") && page.contains("EventSource('/events')"),
+        "{page}"
+    );
+    let events = http_get(&addr, "/events", 600);
+    assert!(
+        events.contains("text/event-stream") && events.contains("data: {"),
+        "{events}"
+    );
+    let mjpeg = http_get(&addr, "/stream.mjpg", 1 << 14);
+    assert!(
+        mjpeg.contains("multipart/x-mixed-replace;boundary=pinsliveframe"),
+        "{mjpeg}"
+    );
+    assert!(
+        mjpeg.contains("--pinsliveframe\r\nContent-Type: image/jpeg"),
+        "{mjpeg}"
+    );
+    let stats = http_get(&addr, "/stats.json", 1 << 16);
+    assert!(stats.contains("\"processed_fps\""), "{stats}");
+    assert!(http_get(&addr, "/nothing", 4096).starts_with("HTTP/1.1 404"));
+    let end = Instant::now() + Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let st = child.try_wait().unwrap();
+    if st.is_none() {
+        let _ = child.kill();
+    }
+    assert!(st.is_some_and(|s| s.success()));
+    h.join().unwrap();
+}
