@@ -53,6 +53,9 @@ pub struct ChairsConfig {
     pub still_background: f64,
     /// Share of sprites that stand still.
     pub still_sprites: f64,
+    /// Share of samples whose background is one flat colour and stands still (a night sky, a
+    /// blank wall: nothing there to see move, so the true flow is zero).
+    pub plain_background: f64,
     /// Extra small sprites per sample, drawn on top of the others (Note S12's sizes).
     pub small_sprites: [usize; 2],
     /// Radius of the small sprites, pixels.
@@ -79,6 +82,9 @@ pub enum TranslationLaw {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ChairsDraw {
     pub still_background: bool,
+    /// The background is one flat colour (its texture entry is `null`).
+    #[serde(default)]
+    pub plain_background: bool,
     pub brightness: f64,
     pub contrast: f64,
     /// Per layer, bottom to top: `null` for a procedural texture, else the photo window.
@@ -105,6 +111,7 @@ impl Default for ChairsConfig {
             min_translation: 0.05,
             still_background: 0.0,
             still_sprites: 0.0,
+            plain_background: 0.0,
             small_sprites: [0, 0],
             small_sprite_radius_px: [2.0, 10.0],
             brightness: [1.0, 1.0],
@@ -178,6 +185,7 @@ impl ChairsConfig {
         for (name, v) in [
             ("scene.still_background", self.still_background),
             ("scene.still_sprites", self.still_sprites),
+            ("scene.plain_background", self.plain_background),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(Error::invalid(name, format!("must be in [0, 1], got {v}")));
@@ -218,6 +226,7 @@ impl ChairsConfig {
             || self.translation_law != TranslationLaw::Disc
             || self.still_background > 0.0
             || self.still_sprites > 0.0
+            || self.plain_background > 0.0
             || self.small_sprites[1] > 0
             || self.brightness != [1.0, 1.0]
             || self.contrast != [1.0, 1.0]
@@ -237,29 +246,41 @@ impl ChairsConfig {
         };
         let brightness = uniform(&mut v, self.brightness);
         let contrast = uniform(&mut v, self.contrast);
-        let still_background =
+        let mut still_background =
             self.still_background > 0.0 && v.random::<f64>() < self.still_background;
+        let plain_background =
+            self.plain_background > 0.0 && v.random::<f64>() < self.plain_background;
+        still_background |= plain_background;
         let mut textures = Vec::new();
-        // A texture: procedural from `seed`, or (with the photos' probability) cut from a photo.
-        let mut texture = |v: &mut rng::Rng, seed: u64, h: usize, w: usize, scale: f32| {
-            let (mut img, crop) = match (&self.photos, &library) {
-                (Some(p), Some(lib)) if v.random::<f64>() < p.fraction => {
-                    let (img, crop) = p.cut(lib, v, self.channels, h, w);
-                    (img, Some(crop))
-                }
-                _ => (procedural(seed, self.channels, h, w, scale), None),
+        // A texture: procedural from `seed`, or (with the photos' probability) cut from a photo,
+        // or one flat colour when `plain`.
+        let mut texture =
+            |v: &mut rng::Rng, plain: bool, seed: u64, h: usize, w: usize, scale: f32| {
+                let (mut img, crop) = match (&self.photos, &library) {
+                    _ if plain => {
+                        let mut img = crate::types::Image::zeros(self.channels, h, w);
+                        for c in 0..self.channels {
+                            img.plane_mut(c).fill(v.random::<f32>());
+                        }
+                        (img, None)
+                    }
+                    (Some(p), Some(lib)) if v.random::<f64>() < p.fraction => {
+                        let (img, crop) = p.cut(lib, v, self.channels, h, w);
+                        (img, Some(crop))
+                    }
+                    _ => (procedural(seed, self.channels, h, w, scale), None),
+                };
+                tone(&mut img, brightness, contrast);
+                textures.push(crop);
+                img
             };
-            tone(&mut img, brightness, contrast);
-            textures.push(crop);
-            img
-        };
         let (w, h) = (self.width as f64, self.height as f64);
         let short = w.min(h);
         let mut layers = Vec::new();
 
         // Background: a texture a quarter larger than the frame, moved about the frame centre.
         let (tw, th) = ((w * 1.25).ceil() as usize, (h * 1.25).ceil() as usize);
-        let bg_tex = texture(&mut v, r.random(), th, tw, short as f32);
+        let bg_tex = texture(&mut v, plain_background, r.random(), th, tw, short as f32);
         let pose1 = Affine::translation(w / 2.0, h / 2.0);
         let centre_motion = {
             let (dx, dy) = self.translation(&mut r, self.background_translation);
@@ -315,7 +336,7 @@ impl ChairsConfig {
             let dtheta = r.random_range(-1.0..=1.0) * self.max_rotation_deg.to_radians();
             let ds = uniform(r, self.scale_change);
             let still = self.still_sprites > 0.0 && v.random::<f64>() < self.still_sprites;
-            let tex = texture(&mut v, tex_seed, size, size, (2.0 * radius) as f32);
+            let tex = texture(&mut v, false, tex_seed, size, size, (2.0 * radius) as f32);
             let pose1 = Affine::pose(x, y, theta, s);
             layers.push(Layer {
                 shape,
@@ -335,6 +356,7 @@ impl ChairsConfig {
         }
         let draw = ChairsDraw {
             still_background,
+            plain_background,
             brightness,
             contrast,
             textures,
