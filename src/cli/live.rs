@@ -19,11 +19,17 @@ use pins::live::view::render_view;
 #[derive(clap::Args)]
 pub(crate) struct LiveArgs {
     /// The camera's stream, e.g. http://192.168.4.1:81/stream.
-    #[arg(long, conflicts_with = "replay", required_unless_present = "replay")]
+    #[arg(long, conflicts_with = "replay", required_unless_present_any = ["replay", "frames"])]
     url: Option<String>,
     /// Run on a recording made with --record instead of a camera.
     #[arg(long)]
     replay: Option<PathBuf>,
+    /// Run on a folder of images (any format, in name order) as if recorded at --fps.
+    #[arg(long, conflicts_with_all = ["url", "replay"])]
+    frames: Option<PathBuf>,
+    /// Frame rate of --frames (their time stamps are k / fps).
+    #[arg(long, default_value_t = 15.0, requires = "frames")]
+    fps: f64,
     /// With --replay: process every recorded frame, not only those the live run processed.
     #[arg(long, requires = "replay")]
     all_frames: bool,
@@ -43,7 +49,7 @@ pub(crate) struct LiveArgs {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Save every received whole JPEG with its time stamps in this folder.
-    #[arg(long, conflicts_with = "replay")]
+    #[arg(long, conflicts_with_all = ["replay", "frames"])]
     record: Option<PathBuf>,
     /// Serve the browser view at this address, e.g. 127.0.0.1:8080.
     #[arg(long)]
@@ -146,9 +152,10 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
         None => None,
     };
     let mut sink = Sink::new(a.out.as_ref())?;
-    let mut source = match &a.replay {
-        Some(dir) => Source::Replay(Replay::open(dir, a.all_frames)?, 0, Counts::default()),
-        None => {
+    let mut source = match (&a.replay, &a.frames) {
+        (Some(dir), _) => Source::Replay(Replay::open(dir, a.all_frames)?, 0, Counts::default()),
+        (None, Some(dir)) => Source::Replay(Replay::from_images(dir, a.fps)?, 0, Counts::default()),
+        (None, None) => {
             let url = HttpUrl::parse(a.url.as_deref().unwrap_or_default())?;
             let timeouts = Timeouts {
                 response: secs(a.response_timeout, "--response-timeout")?,

@@ -147,11 +147,47 @@ impl Replay {
         })
     }
 
+    /// A folder of images (any format the image reader knows, in name order) as a recording
+    /// taken at `fps`: frame k has the time stamp k / fps.
+    pub fn from_images(dir: &Path, fps: f64) -> Result<Self> {
+        if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
+            return Err(Error::invalid(
+                "--fps",
+                format!("must be in (0, 1000], got {fps}"),
+            ));
+        }
+        let files = crate::io::frame_files(dir)?;
+        let frames = files
+            .iter()
+            .enumerate()
+            .filter_map(|(k, p)| {
+                let name = p.file_name()?.to_str()?.to_string();
+                let t = k as f64 / fps;
+                Some(RecordedFrame {
+                    seq: k as u64,
+                    file: name,
+                    camera_s: Some(t),
+                    received_s: t,
+                })
+            })
+            .collect();
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            frames,
+        })
+    }
+
     /// Reads and decodes one recorded frame (a bad JPEG is the caller's to count and skip).
     pub fn load(&self, r: &RecordedFrame) -> Result<std::result::Result<Frame, Bad>> {
         let path = self.dir.join(&r.file);
         let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-        Ok(decode_frame(&bytes).map(|image| Frame {
+        let jpeg = bytes.starts_with(&[0xFF, 0xD8]);
+        let image = if jpeg {
+            decode_frame(&bytes)
+        } else {
+            crate::io::decode_image(&bytes, &path).map_err(|e| Bad::Corrupt(e.to_string()))
+        };
+        Ok(image.map(|image| Frame {
             seq: r.seq,
             jpeg: Arc::new(bytes),
             image: Arc::new(image),
