@@ -70,15 +70,20 @@ mod tests {
 
     #[test]
     fn area_means_keep_the_mean_and_halve_exactly() {
-        let data: Vec<f32> = (0..4 * 6).map(|v| v as f32).collect();
-        let img = Image::from_vec(1, 4, 6, data.clone()).unwrap();
+        let (h, w) = (16, 24);
+        let data: Vec<f32> = (0..h * w).map(|v| v as f32).collect();
+        let img = Image::from_vec(1, h, w, data.clone()).unwrap();
         let half = downscale(&img, 0.5).unwrap();
-        assert_eq!(half.shape(), (1, 2, 3));
-        assert_eq!(half.get(0, 0, 0), (0.0 + 1.0 + 6.0 + 7.0) / 4.0);
-        let mean = |d: &[f32]| d.iter().sum::<f32>() / d.len() as f32;
-        let third = downscale(&Image::from_vec(1, 4, 6, data).unwrap(), 0.7).unwrap();
-        assert!((mean(third.data()) - mean(img.data())).abs() < 0.3);
+        assert_eq!(half.shape(), (1, 8, 12));
+        let want = (0.0 + 1.0 + w as f32 + (w + 1) as f32) / 4.0;
+        assert_eq!(half.get(0, 0, 0), want);
+        let mean = |d: &[f32]| d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64;
+        let odd = downscale(&img, 0.7).unwrap();
+        assert_eq!(odd.shape(), (1, 11, 17));
+        assert!((mean(odd.data()) - mean(img.data())).abs() < 1.0);
         assert!(downscale(&img, 0.0).is_err() && downscale(&img, 1.5).is_err());
         assert_eq!(downscale(&img, 1.0).unwrap(), img);
+        // Never below the network's stride of 8 pixels.
+        assert_eq!(downscale(&img, 0.1).unwrap().shape(), (1, 8, 8));
     }
 }
