@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::track::detect::detect;
 use crate::track::multi::Tracker;
 use crate::track::photometric::GreyPair;
@@ -36,25 +36,7 @@ pub struct LiveTracker {
 impl LiveTracker {
     /// Checks the options as `track_sequence` does.
     pub fn new(opts: TrackOptions) -> Result<Self> {
-        if opts.horizons.is_empty() || opts.horizons.iter().any(|&h| h == 0 || h > 10_000) {
-            return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
-        }
-        if !(opts.threshold.is_finite() && opts.threshold >= 0.0) {
-            return Err(Error::invalid(
-                "--threshold",
-                format!(
-                    "must be a finite number >= 0 (px/frame), got {}",
-                    opts.threshold
-                ),
-            ));
-        }
-        if !(opts.noise_k.is_finite() && opts.noise_k >= 0.0) {
-            return Err(Error::invalid(
-                "--noise-k",
-                format!("must be a finite number >= 0, got {}", opts.noise_k),
-            ));
-        }
-        opts.detect.validate()?;
+        opts.validate()?;
         let max_h = opts.horizons.iter().copied().max().unwrap_or(1);
         Ok(Self {
             tracker: Tracker::new(opts.tracker.clone())?,

@@ -76,6 +76,31 @@ pub struct TrackOptions {
     pub debug: bool,
 }
 
+impl TrackOptions {
+    /// Checks every option, naming the flag of the first bad one.
+    pub fn validate(&self) -> Result<()> {
+        if self.horizons.is_empty() || self.horizons.iter().any(|&h| h == 0 || h > 10_000) {
+            return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
+        }
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            return Err(Error::invalid(
+                "--threshold",
+                format!(
+                    "must be a finite number >= 0 (px/frame), got {}",
+                    self.threshold
+                ),
+            ));
+        }
+        if !(self.noise_k.is_finite() && self.noise_k >= 0.0) {
+            return Err(Error::invalid(
+                "--noise-k",
+                format!("must be a finite number >= 0, got {}", self.noise_k),
+            ));
+        }
+        self.detect.validate()
+    }
+}
+
 /// One frame's flow (frame n → n + 1), with the two frames when the photometric test is to run.
 pub struct FlowStep {
     pub name: String,
@@ -198,25 +223,7 @@ pub fn track_sequence(
     opts: &TrackOptions,
     truth: Option<&Truth>,
 ) -> Result<TrackRun> {
-    if opts.horizons.is_empty() || opts.horizons.iter().any(|&h| h == 0 || h > 10_000) {
-        return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
-    }
-    if !(opts.threshold.is_finite() && opts.threshold >= 0.0) {
-        return Err(Error::invalid(
-            "--threshold",
-            format!(
-                "must be a finite number >= 0 (px/frame), got {}",
-                opts.threshold
-            ),
-        ));
-    }
-    if !(opts.noise_k.is_finite() && opts.noise_k >= 0.0) {
-        return Err(Error::invalid(
-            "--noise-k",
-            format!("must be a finite number >= 0, got {}", opts.noise_k),
-        ));
-    }
-    opts.detect.validate()?;
+    opts.validate()?;
     let max_h = *opts.horizons.iter().max().unwrap_or(&1);
     let mut tracker = Tracker::new(opts.tracker.clone())?;
     let mut objects: BTreeMap<usize, Vec<FrameRecord>> = BTreeMap::new();
