@@ -411,3 +411,103 @@ fn an_experiment_scores_every_predictor_and_the_fit_wins_on_a_spiral() {
     ]));
     assert!(err.contains("windw"), "{err}");
 }
+
+/// The whole system's error against run time: an MMS experiment with two operating points
+/// (full and half resolution) gives one point row each, with the flow and tracking times, the
+/// pooled error per horizon and the chart; operating points without MMS, or a scale outside
+/// (0, 1], are refused by name, as is `pins track --scale 0`.
+#[test]
+fn operating_points_give_the_error_against_run_time() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("line.json"),
+        r#"{"scene": {"width": 128, "height": 96, "frames": 10, "seed": 3,
+            "objects": [{"path": "line", "radius": 12, "from": [0.25, 0.5], "to": [0.75, 0.5]}]}}"#,
+    )
+    .unwrap();
+    let cfg = d.path().join("exp.json");
+    let write = |extra: &str| {
+        std::fs::write(
+            &cfg,
+            format!(
+                r#"{{"clips": [{{"name": "line", "config": "line.json"}}],
+                    "predictors": [{{"name": "cv", "mtp": {{"method": "constant_velocity"}}}}],
+                    "horizons": [1, 2], {extra}}}"#
+            ),
+        )
+        .unwrap();
+    };
+    write(
+        r#""flow": "mms", "confirm": 2,
+           "operating_points": [{"scale": 1.0, "iters": 2}, {"scale": 0.5, "iters": 3}]"#,
+    );
+    let out = d.path().join("out");
+    let table = ok(&pins(&[
+        "track",
+        "experiment",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--no-plots",
+    ]));
+    assert!(table.contains("total ms"), "{table}");
+    let r = json(&out.join("report.json"));
+    let points = r["points"].as_array().expect("points");
+    assert_eq!(points.len(), 2, "{table}");
+    for (p, (scale, iters)) in points.iter().zip([(1.0, 2), (0.5, 3)]) {
+        assert_eq!(p["point"]["scale"].as_f64(), Some(scale));
+        assert_eq!(p["point"]["iters"].as_u64(), Some(iters));
+        assert!(p["flow_ms_per_frame"].as_f64().unwrap() > 0.0, "{p}");
+        assert_eq!(p["rmse_2d"].as_array().unwrap().len(), 2, "{p}");
+    }
+    // Each case is its own predictor name in the per-case summaries.
+    assert!(
+        r["id_switches"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|row| row[1] == "cv @ scale 0.50, 3 it"),
+        "{table}"
+    );
+    // The chart is drawn wherever a track reached the horizon.
+    let finite = points
+        .iter()
+        .any(|p| p["rmse_2d"][0][1].as_f64().is_some_and(f64::is_finite));
+    assert_eq!(out.join("error_vs_ms_h1.png").exists(), finite, "{table}");
+    for (extra, named) in [
+        (
+            r#""operating_points": [{"scale": 1.0, "iters": 2}]"#,
+            "only MMS",
+        ),
+        (
+            r#""flow": "mms", "operating_points": [{"scale": 1.5, "iters": 2}]"#,
+            "scale must be in (0, 1]",
+        ),
+        (
+            r#""flow": "mms", "operating_points": [{"scale": 0.5, "iters": 0}]"#,
+            "iters must be",
+        ),
+    ] {
+        write(extra);
+        let err = failed(&pins(&[
+            "track",
+            "experiment",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            d.path().join("x").to_str().unwrap(),
+        ]));
+        assert!(err.contains(named), "{extra}: {err}");
+    }
+    let err = failed(&pins(&[
+        "track",
+        "--frames",
+        d.path().to_str().unwrap(),
+        "--scale",
+        "0",
+        "--out",
+        d.path().join("y").to_str().unwrap(),
+    ]));
+    assert!(err.contains("--scale"), "{err}");
+}

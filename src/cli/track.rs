@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 
-use pins::flow::sequence::pair_flows;
+use pins::flow::sequence::pair_flows_scaled;
 use pins::io;
 use pins::scene::truth::Truth;
 use pins::track::photometric::{GreyFrame, GreyPair};
@@ -44,6 +44,10 @@ struct RunArgs {
     /// MMS refinement iterations for --frames (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
+    /// With --frames: run MMS at this fraction of the frame size, in (0, 1] (faster; the flow
+    /// is resampled to the full frame, so tracks stay in its pixels).
+    #[arg(long, default_value_t = 1.0)]
+    scale: f64,
     /// Output folder (tracks.json and one plot per object).
     #[arg(long, required = true)]
     out: Option<PathBuf>,
@@ -216,12 +220,15 @@ fn run(a: RunArgs) -> Result<()> {
             (run, files.len(), None)
         }
         (None, Some(dir)) => {
+            if !(a.scale.is_finite() && a.scale > 0.0 && a.scale <= 1.0) {
+                bail!("--scale must be in (0, 1], got {}", a.scale);
+            }
             let files = io::frame_files(dir)?;
             let predictor = pins::flow::infer::Predictor::load(&a.weights)?;
             let iters = a.iters.unwrap_or(predictor.config.iters);
             let mut flow_ms = 0.0;
             let mut prev: Option<GreyFrame> = None;
-            let flows = pair_flows(&predictor, files.as_slice(), iters).map(|p| {
+            let flows = pair_flows_scaled(&predictor, files.as_slice(), iters, a.scale).map(|p| {
                 let p = p?;
                 flow_ms += p.ms;
                 let first = match prev.take() {
@@ -357,7 +364,7 @@ fn eval(a: EvalArgs) -> Result<()> {
 fn experiment(a: ExperimentArgs) -> Result<()> {
     use pins::report::track_plot::plot_track;
     use pins::track::eval::evaluate;
-    use pins::track::experiment::{ExperimentConfig, run, table};
+    use pins::track::experiment::{ExperimentConfig, points_chart, points_table, run, table};
     let cfg = ExperimentConfig::from_file(&a.config)?;
     let k = cfg.horizons.iter().copied().max().unwrap_or(1);
     let plots = a.out.join("plots");
@@ -390,8 +397,19 @@ fn experiment(a: ExperimentArgs) -> Result<()> {
         }
         Ok(())
     })?;
-    let text = table(&report);
+    let text = table(&report) + &points_table(&report);
     println!("{text}");
+    if cfg.operating_points.len() > 1 {
+        for &h in &cfg.horizons {
+            // A horizon no track reached has no finite error to draw: said, not fatal.
+            if let Some(chart) = points_chart(&report, h) {
+                let png = a.out.join(format!("error_vs_ms_h{h}.png"));
+                if let Err(e) = chart.write_png(&png, 900, 600) {
+                    eprintln!("{}: not written: {e}", png.display());
+                }
+            }
+        }
+    }
     io::write_bytes_atomic(
         &a.out.join("report.json"),
         serde_json::to_string_pretty(&report)?.as_bytes(),

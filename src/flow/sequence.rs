@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::infer::Predictor;
+use super::scale::predict_scaled;
 use crate::error::Result;
 use crate::types::{Flow, Image};
 
@@ -58,10 +59,21 @@ pub fn pair_flows<'a, F: Frames + ?Sized>(
     frames: &'a F,
     iters: usize,
 ) -> impl Iterator<Item = Result<PairFlow>> + 'a {
+    pair_flows_scaled(predictor, frames, iters, 1.0)
+}
+
+/// As `pair_flows`, with the network run at `scale` ∈ (0, 1] of the frames' size and the flow
+/// brought back to it (`super::scale`); the time includes the resampling.
+pub fn pair_flows_scaled<'a, F: Frames + ?Sized>(
+    predictor: &'a Predictor,
+    frames: &'a F,
+    iters: usize,
+    scale: f64,
+) -> impl Iterator<Item = Result<PairFlow>> + 'a {
     (0..frames.count().saturating_sub(1)).map(move |index| {
         let (a, b) = frames.pair(index)?;
         let started = Instant::now();
-        let flow = predictor.predict(&a, &b, iters)?;
+        let flow = predict_scaled(predictor, &a, &b, iters, scale)?;
         Ok(PairFlow {
             index,
             flow,

@@ -17,7 +17,7 @@ use super::static_flow::BackgroundFlow;
 use crate::dataset::sequence::SequenceConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;
-use crate::flow::sequence::pair_flows;
+use crate::flow::sequence::pair_flows_scaled;
 use crate::rng;
 use crate::scene::truth::Truth;
 use crate::types::Flow;
@@ -81,6 +81,26 @@ pub struct ExperimentConfig {
     /// Confirmation window and motion consistency (see `TrackerConfig`); the defaults when absent.
     #[serde(default)]
     pub confirm: Option<usize>,
+    /// MMS flow only: the points of the whole system's error-against-run-time curve (flow
+    /// resolution and iterations). Empty: one point, full resolution at `iters`.
+    #[serde(default)]
+    pub operating_points: Vec<OperatingPoint>,
+}
+
+/// One point of the whole system's error against run time: MMS at `scale` of the frame size
+/// (`crate::flow::scale`) after `iters` refinements.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OperatingPoint {
+    pub scale: f64,
+    pub iters: usize,
+}
+
+impl OperatingPoint {
+    /// A short label, e.g. `scale 0.50, 4 it`.
+    pub fn label(&self) -> String {
+        format!("scale {:.2}, {} it", self.scale, self.iters)
+    }
 }
 
 fn default_source() -> FlowSource {
@@ -103,6 +123,18 @@ fn default_noise_k() -> f64 {
 }
 
 impl ExperimentConfig {
+    /// The operating points to run: the configured ones, or full resolution at `iters`.
+    pub fn points(&self) -> Vec<OperatingPoint> {
+        if self.operating_points.is_empty() {
+            vec![OperatingPoint {
+                scale: 1.0,
+                iters: self.iters,
+            }]
+        } else {
+            self.operating_points.clone()
+        }
+    }
+
     pub fn from_file(path: &Path) -> Result<Self> {
         let mut cfg: Self = crate::io::read_json(path)?;
         let base = path.parent().unwrap_or(Path::new(""));
@@ -136,6 +168,26 @@ impl ExperimentConfig {
         if self.confirm == Some(0) {
             return Err(Error::invalid("confirm", "must be >= 1"));
         }
+        if !self.operating_points.is_empty() && self.flow != FlowSource::Mms {
+            return Err(Error::invalid(
+                "operating_points",
+                "only MMS flow has operating points (set \"flow\": \"mms\")",
+            ));
+        }
+        for p in &self.operating_points {
+            if !(p.scale.is_finite() && p.scale > 0.0 && p.scale <= 1.0) {
+                return Err(Error::invalid(
+                    "operating_points",
+                    format!("scale must be in (0, 1], got {}", p.scale),
+                ));
+            }
+            if p.iters == 0 || p.iters > 64 {
+                return Err(Error::invalid(
+                    "operating_points",
+                    format!("iters must be in 1..=64, got {}", p.iters),
+                ));
+            }
+        }
         for c in &self.clips {
             c.clip.validate()?;
         }
@@ -157,6 +209,28 @@ pub struct Row {
     #[serde(flatten)]
     pub error: HorizonError,
     pub ms_per_frame: f64,
+    /// The operating point (MMS flow; absent for exact flow).
+    #[serde(default)]
+    pub point: Option<OperatingPoint>,
+}
+
+/// One clip at one operating point with one predictor: what the whole system costs per frame
+/// and what it scores (the error-against-run-time table).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PointRow {
+    pub clip: String,
+    pub predictor: String,
+    pub point: OperatingPoint,
+    /// MMS time per frame (the network alone) and tracking time per frame.
+    pub flow_ms_per_frame: f64,
+    pub track_ms_per_frame: f64,
+    /// Pooled RMSE_2D per horizon, in `horizons` order.
+    pub rmse_2d: Vec<(usize, f64)>,
+    pub tracks: usize,
+    pub id_switches: usize,
+    pub spurious: usize,
+    pub missed: usize,
+    pub background_flow: Option<BackgroundFlow>,
 }
 
 /// The whole result.
@@ -177,6 +251,9 @@ pub struct ExperimentReport {
     /// Clip → background-flow magnitude of its flows.
     #[serde(default)]
     pub background_flow: Vec<(String, BackgroundFlow)>,
+    /// MMS flow: one row per clip, operating point and predictor.
+    #[serde(default)]
+    pub points: Vec<PointRow>,
 }
 
 /// A clip's flows and truth, computed once and shared by every predictor.
@@ -192,7 +269,7 @@ pub fn clip_flows(
     cfg: &SequenceConfig,
     source: FlowSource,
     predictor: Option<&Predictor>,
-    iters: usize,
+    point: OperatingPoint,
 ) -> Result<(ClipData, Option<f64>)> {
     let scene = &cfg.scene;
     let truth = Truth::of(scene)?;
@@ -220,7 +297,8 @@ pub fn clip_flows(
                     camera.apply(&scene.frame(n)?, seed)
                 })
                 .collect::<Result<Vec<_>>>()?;
-            let pairs = pair_flows(p, frames.as_slice(), iters).collect::<Result<Vec<_>>>()?;
+            let pairs = pair_flows_scaled(p, frames.as_slice(), point.iters, point.scale)
+                .collect::<Result<Vec<_>>>()?;
             let ms = pairs.iter().map(|f| f.ms).sum::<f64>() / pairs.len() as f64;
             let flows = pairs.into_iter().map(|f| f.flow).collect();
             let grey = frames.iter().map(GreyFrame::new).collect();
@@ -272,58 +350,103 @@ pub fn run(
     let mut missed = Vec::new();
     let mut background = Vec::new();
     let mut flow_ms = Vec::new();
+    let mut points = Vec::new();
+    let several = cfg.points().len() > 1;
     for clip in &cfg.clips {
-        let (data, ms) = clip_flows(&clip.clip, cfg.flow, predictor.as_ref(), cfg.iters)?;
-        flow_ms.extend(ms);
-        for p in &cfg.predictors {
-            let opts = TrackOptions {
-                tracker: TrackerConfig {
-                    mtp: p.mtp.clone(),
-                    confirm: cfg.confirm.unwrap_or(TrackerConfig::default().confirm),
-                    ..TrackerConfig::default()
-                },
-                horizons: cfg.horizons.clone(),
-                threshold: cfg.threshold,
-                noise_k: cfg.noise_k,
-                min_area: cfg.min_area,
-                detect: cfg.detect.clone(),
-                debug: false,
-            };
-            let tracks = track_clip(&data, &opts)?;
-            if let Some(b) = &tracks.background_flow
-                && !background.iter().any(|(c, _)| c == &clip.name)
-            {
-                background.push((clip.name.clone(), b.clone()));
-            }
-            on_tracks(&clip.name, &p.name, &tracks, &data.truth)?;
-            let report = evaluate(&tracks, &data.truth)?;
-            let ms = tracks.ms_per_frame.unwrap_or(f64::NAN);
-            for o in report.objects.iter().filter(|o| o.truth_index.is_some()) {
-                for e in &o.horizons {
+        for point in cfg.points() {
+            let (data, ms) = clip_flows(&clip.clip, cfg.flow, predictor.as_ref(), point)?;
+            flow_ms.extend(ms);
+            let mms_point = (cfg.flow == FlowSource::Mms).then_some(point);
+            for p in &cfg.predictors {
+                // With several operating points each (predictor, point) is its own case.
+                let name = if several {
+                    format!("{} @ {}", p.name, point.label())
+                } else {
+                    p.name.clone()
+                };
+                let opts = TrackOptions {
+                    tracker: TrackerConfig {
+                        mtp: p.mtp.clone(),
+                        confirm: cfg.confirm.unwrap_or(TrackerConfig::default().confirm),
+                        ..TrackerConfig::default()
+                    },
+                    horizons: cfg.horizons.clone(),
+                    threshold: cfg.threshold,
+                    noise_k: cfg.noise_k,
+                    min_area: cfg.min_area,
+                    detect: cfg.detect.clone(),
+                    debug: false,
+                };
+                let tracks = track_clip(&data, &opts)?;
+                if let Some(b) = &tracks.background_flow {
+                    let key = if several {
+                        format!("{} @ {}", clip.name, point.label())
+                    } else {
+                        clip.name.clone()
+                    };
+                    if !background.iter().any(|(c, _)| c == &key) {
+                        background.push((key, b.clone()));
+                    }
+                }
+                on_tracks(&clip.name, &name, &tracks, &data.truth)?;
+                let report = evaluate(&tracks, &data.truth)?;
+                let track_ms = tracks.ms_per_frame.unwrap_or(f64::NAN);
+                for o in report.objects.iter().filter(|o| o.truth_index.is_some()) {
+                    for e in &o.horizons {
+                        rows.push(Row {
+                            clip: clip.name.clone(),
+                            predictor: name.clone(),
+                            object: o.truth_index,
+                            track_id: Some(o.id),
+                            error: e.clone(),
+                            ms_per_frame: track_ms,
+                            point: mms_point,
+                        });
+                    }
+                }
+                for e in &report.overall {
                     rows.push(Row {
                         clip: clip.name.clone(),
-                        predictor: p.name.clone(),
-                        object: o.truth_index,
-                        track_id: Some(o.id),
+                        predictor: name.clone(),
+                        object: None,
+                        track_id: None,
                         error: e.clone(),
-                        ms_per_frame: ms,
+                        ms_per_frame: track_ms,
+                        point: mms_point,
                     });
                 }
+                let lost = report
+                    .objects
+                    .iter()
+                    .filter(|o| o.truth_index.is_none())
+                    .count();
+                if let (Some(point), Some(ms)) = (mms_point, ms) {
+                    points.push(PointRow {
+                        clip: clip.name.clone(),
+                        predictor: p.name.clone(),
+                        point,
+                        flow_ms_per_frame: ms,
+                        track_ms_per_frame: track_ms,
+                        // Every horizon, NaN (null) where no track reached it.
+                        rmse_2d: cfg
+                            .horizons
+                            .iter()
+                            .map(|&h| {
+                                let e = report.overall.iter().find(|e| e.horizon == h);
+                                (h, e.map_or(f64::NAN, |e| e.rmse_2d))
+                            })
+                            .collect(),
+                        tracks: tracks.objects.len(),
+                        id_switches: report.id_switches,
+                        spurious: lost,
+                        missed: report.missed.len(),
+                        background_flow: tracks.background_flow.clone(),
+                    });
+                }
+                switches.push((clip.name.clone(), name.clone(), report.id_switches));
+                spurious.push((clip.name.clone(), name.clone(), lost));
+                missed.push((clip.name.clone(), name, report.missed.clone()));
             }
-            for e in &report.overall {
-                rows.push(Row {
-                    clip: clip.name.clone(),
-                    predictor: p.name.clone(),
-                    object: None,
-                    track_id: None,
-                    error: e.clone(),
-                    ms_per_frame: ms,
-                });
-            }
-            switches.push((clip.name.clone(), p.name.clone(), report.id_switches));
-            let lost = report.objects.iter().filter(|o| o.truth_index.is_none());
-            spurious.push((clip.name.clone(), p.name.clone(), lost.count()));
-            missed.push((clip.name.clone(), p.name.clone(), report.missed.clone()));
         }
     }
     Ok(ExperimentReport {
@@ -335,6 +458,82 @@ pub fn run(
         spurious,
         missed,
         background_flow: background,
+        points,
+    })
+}
+
+/// The error-against-run-time table of the operating points (empty for exact flow).
+pub fn points_table(r: &ExperimentReport) -> String {
+    if r.points.is_empty() {
+        return String::new();
+    }
+    let horizons: Vec<usize> = r.points[0].rmse_2d.iter().map(|&(h, _)| h).collect();
+    let mut s = format!(
+        "{:<12} {:<22} {:>5} {:>5} {:>9} {:>9} {:>9}",
+        "clip", "predictor", "scale", "iters", "flow ms", "track ms", "total ms"
+    );
+    for h in &horizons {
+        s += &format!(" {:>9}", format!("RMSE@{h}"));
+    }
+    s += &format!(
+        " {:>6} {:>5} {:>5} {:>6} {:>8} {:>8}\n",
+        "tracks", "IDsw", "spur", "missed", "bg mean", "bg p99"
+    );
+    for p in &r.points {
+        s += &format!(
+            "{:<12} {:<22} {:>5.2} {:>5} {:>9.0} {:>9.2} {:>9.0}",
+            p.clip,
+            p.predictor,
+            p.point.scale,
+            p.point.iters,
+            p.flow_ms_per_frame,
+            p.track_ms_per_frame,
+            p.flow_ms_per_frame + p.track_ms_per_frame
+        );
+        for (_, e) in &p.rmse_2d {
+            s += &format!(" {e:>9.2}");
+        }
+        let (bm, bp) = p
+            .background_flow
+            .as_ref()
+            .map_or((f64::NAN, f64::NAN), |b| (b.mean, b.p99));
+        s += &format!(
+            " {:>6} {:>5} {:>5} {:>6} {:>8.3} {:>8.3}\n",
+            p.tracks, p.id_switches, p.spurious, p.missed, bm, bp
+        );
+    }
+    s
+}
+
+/// The error-against-run-time chart: per clip and predictor, RMSE_2D at `horizon` against
+/// the whole system's milliseconds per frame (flow + tracking), one marker per operating point.
+pub fn points_chart(r: &ExperimentReport, horizon: usize) -> Option<crate::io::chart::Chart> {
+    use crate::io::chart::{Chart, Series};
+    if r.points.is_empty() {
+        return None;
+    }
+    let mut series: Vec<Series> = Vec::new();
+    for p in &r.points {
+        let Some(&(_, e)) = p.rmse_2d.iter().find(|(h, _)| *h == horizon) else {
+            continue;
+        };
+        let name = format!("{} / {}", p.clip, p.predictor);
+        let x = p.flow_ms_per_frame + p.track_ms_per_frame;
+        match series.iter_mut().find(|s| s.name == name) {
+            Some(s) => s.points.push((x, e)),
+            None => series.push(Series {
+                name,
+                points: vec![(x, e)],
+                markers: true,
+            }),
+        }
+    }
+    Some(Chart {
+        title: format!("Whole system: RMSE_2D {horizon} frame(s) ahead against run time"),
+        x_label: "ms per frame (MMS flow + tracking)".into(),
+        y_label: format!("RMSE_2D at {horizon} frame(s) (px)"),
+        series,
+        log_y: true,
     })
 }
 
