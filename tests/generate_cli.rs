@@ -468,12 +468,24 @@ const TINY: &str = r#"{"count": 4, "seed": 1,
 
 /// Starts `pins` with each argument list at once (no waiting in between), then collects them.
 fn run_together(runs: &[Vec<String>]) -> Vec<std::process::Output> {
+    let none: Vec<(String, String)> = Vec::new();
+    run_together_env(
+        &runs
+            .iter()
+            .map(|a| (a.clone(), none.clone()))
+            .collect::<Vec<_>>(),
+    )
+}
+
+/// As `run_together`, each run with its own extra environment variables.
+fn run_together_env(runs: &[(Vec<String>, Vec<(String, String)>)]) -> Vec<std::process::Output> {
     use std::process::{Command, Stdio};
     let children: Vec<_> = runs
         .iter()
-        .map(|args| {
+        .map(|(args, env)| {
             Command::new(env!("CARGO_BIN_EXE_pins"))
                 .args(args)
+                .envs(env.iter().map(|(k, v)| (k.as_str(), v.as_str())))
                 .env("RAYON_NUM_THREADS", "1")
                 .stdout(Stdio::piped())
                 .stderr(Stdio::piped())
@@ -582,6 +594,137 @@ fn shards_started_together_make_what_one_run_makes() {
             snapshot(&out).keys().collect::<Vec<_>>()
         );
     }
+}
+
+/// Cluster array jobs: the tasks of a Slurm array starting at 1 with a step of 2, and the pods
+/// of a Kubernetes Indexed Job, started together on one folder with only their scheduler's
+/// environment, make what one run makes; each says where its shard came from.
+#[test]
+fn scheduler_array_tasks_make_what_one_run_makes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = write_config(tmp.path(), "tiny.json", TINY);
+    let one = tmp.path().join("one");
+    let single = generate_args(&cfg, &one, &["--count", "9"]);
+    ok(&pins(
+        &single.iter().map(String::as_str).collect::<Vec<_>>(),
+        Some(1),
+    ));
+    let reference = snapshot(&one);
+    let kv = |pairs: &[(&str, String)]| -> Vec<(String, String)> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect()
+    };
+    // sbatch --array=1-5:2 → tasks 1, 3, 5.
+    let slurm_out = tmp.path().join("slurm");
+    let slurm: Vec<_> = [1, 3, 5]
+        .iter()
+        .map(|id| {
+            (
+                generate_args(&cfg, &slurm_out, &["--count", "9"]),
+                kv(&[
+                    ("SLURM_ARRAY_TASK_ID", id.to_string()),
+                    ("SLURM_ARRAY_TASK_MIN", "1".into()),
+                    ("SLURM_ARRAY_TASK_MAX", "5".into()),
+                    ("SLURM_ARRAY_TASK_STEP", "2".into()),
+                    ("SLURM_ARRAY_TASK_COUNT", "3".into()),
+                ]),
+            )
+        })
+        .collect();
+    // An Indexed Job of 4 completions, the count from PINS_SHARD_COUNT for two pods and
+    // --shards for the others.
+    let k8s_out = tmp.path().join("k8s");
+    let k8s: Vec<_> = (0..4)
+        .map(|i| {
+            let mut args = generate_args(&cfg, &k8s_out, &["--count", "9"]);
+            let mut env = kv(&[("JOB_COMPLETION_INDEX", i.to_string())]);
+            if i % 2 == 0 {
+                env.push(("PINS_SHARD_COUNT".into(), "4".into()));
+            } else {
+                args.extend(["--shards".to_string(), "4".to_string()]);
+            }
+            (args, env)
+        })
+        .collect();
+    for (name, runs, out, n) in [("slurm", slurm, &slurm_out, 3), ("k8s", k8s, &k8s_out, 4)] {
+        let outs = run_together_env(&runs);
+        for (k, o) in outs.iter().enumerate() {
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(o.status.success(), "{name} task {k}: {err}");
+            assert!(
+                err.contains(&format!("shard {k}/{n} from the")),
+                "{name} {k}: {err}"
+            );
+        }
+        assert!(
+            snapshot(out) == reference,
+            "{name}: the array's tasks differ from one run"
+        );
+    }
+    // The shipped sbatch script, run as two tasks of `--array=0-1` would run it.
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/generate_slurm.sbatch");
+    let script_out = tmp.path().join("script");
+    let small_cfg = write_config(
+        tmp.path(),
+        "nine.json",
+        &TINY.replacen("\"count\": 4", "\"count\": 9", 1),
+    );
+    for id in ["0", "1"] {
+        let o = std::process::Command::new("bash")
+            .arg(&script)
+            .arg(&small_cfg)
+            .arg(&script_out)
+            .env("PINS", env!("CARGO_BIN_EXE_pins"))
+            .env("SLURM_ARRAY_TASK_ID", id)
+            .env("SLURM_ARRAY_TASK_MIN", "0")
+            .env("SLURM_ARRAY_TASK_MAX", "1")
+            .env("SLURM_ARRAY_TASK_COUNT", "2")
+            .env("SLURM_CPUS_PER_TASK", "1")
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(
+        snapshot(&script_out) == reference,
+        "the sbatch script's tasks"
+    );
+    // The Kubernetes manifest repeats its completions in PINS_SHARD_COUNT.
+    let job = fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/generate_k8s_job.yaml"),
+    )
+    .unwrap();
+    let field = |key: &str| {
+        job.lines()
+            .filter(|l| !l.trim_start().starts_with('#'))
+            .skip_while(|l| !l.contains(key))
+            .find_map(|l| {
+                let digits: String = l
+                    .split('#')
+                    .next()
+                    .unwrap_or("")
+                    .chars()
+                    .filter(char::is_ascii_digit)
+                    .collect();
+                digits.parse::<usize>().ok()
+            })
+            .unwrap_or_else(|| panic!("{key} in the manifest"))
+    };
+    assert_eq!(field("completions:"), field("PINS_SHARD_COUNT"));
+    assert!(job.contains("completionMode: Indexed"));
+    // A Kubernetes index without a count is refused before anything is written.
+    let bad = tmp.path().join("bad");
+    let o = run_together_env(&[(
+        generate_args(&cfg, &bad, &["--count", "9"]),
+        kv(&[("JOB_COMPLETION_INDEX", "1".into())]),
+    )]);
+    let err = String::from_utf8_lossy(&o[0].stderr);
+    assert!(
+        !o[0].status.success() && err.contains("PINS_SHARD_COUNT"),
+        "{err}"
+    );
+    assert!(!bad.exists());
 }
 
 /// A `NNNNN_meta.json` as older versions wrote it: bare file names, no sizes or hashes.

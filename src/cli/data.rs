@@ -83,9 +83,15 @@ pub(crate) struct GenerateArgs {
     #[arg(long)]
     seed: Option<u64>,
     /// Generate only shard K of N (K/N, 0-based): a contiguous block of samples. Shards may
-    /// run at the same time on one folder.
-    #[arg(long, default_value = "0/1")]
-    shard: String,
+    /// run at the same time on one folder. Without it, the shard comes from a Slurm job array
+    /// (SLURM_ARRAY_TASK_ID, _MIN, _STEP, _COUNT) or a Kubernetes Indexed Job
+    /// (JOB_COMPLETION_INDEX with --shards or PINS_SHARD_COUNT), else the whole dataset.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Number of shards of a scheduler's array job (Kubernetes does not export it); must agree
+    /// with --shard, PINS_SHARD_COUNT and Slurm's count where those are given.
+    #[arg(long)]
+    shards: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -94,7 +100,7 @@ pub(crate) struct GenerateArgs {
     /// Exits non-zero naming each bad sample. Without --config/--count/--seed the folder's own
     /// config is used; with them, the config they make (--config, else the folder's, with
     /// --count/--seed applied) must be the folder's, or it is an error.
-    #[arg(long, conflicts_with = "shard")]
+    #[arg(long, conflicts_with_all = ["shard", "shards"])]
     verify: bool,
 }
 
@@ -146,7 +152,15 @@ pub(crate) fn generate(a: GenerateArgs) -> Result<()> {
     if let Some(s) = a.seed {
         config.seed = s;
     }
-    let shard = Shard::parse(&a.shard)?;
+    let source =
+        pins::dataset::scheduler::resolve(a.shard.as_deref(), a.shards, |k| std::env::var(k).ok())?;
+    let shard = source.shard;
+    if a.shard.is_none() && shard != Shard::ALL {
+        eprintln!(
+            "generate: shard {}/{} from the {}",
+            shard.index, shard.count, source.origin
+        );
+    }
     let generator = Generator::new(config)?;
     let progress = !a.quiet && std::io::stderr().is_terminal();
     let started = std::time::Instant::now();

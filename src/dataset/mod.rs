@@ -6,6 +6,7 @@ pub mod folder;
 pub mod generate;
 pub mod integrity;
 pub mod manifest;
+pub mod scheduler;
 pub mod sequence;
 pub mod verify;
 
