@@ -10,7 +10,10 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 use cli::array::{ArrayCommand, array};
-use cli::data::{BenchArgs, GenerateArgs, PsfArgs, SimulateArgs, bench, generate, psf, simulate};
+use cli::data::{
+    BenchArgs, GenerateArgs, PackArgs, PsfArgs, SimulateArgs, UnpackArgs, bench, generate, pack,
+    psf, simulate, unpack,
+};
 use cli::flow::{
     BenchFlowArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs,
     bench_flow, bench_real, detect_limits, eval, export, infer, train,
@@ -35,6 +38,10 @@ struct Cli {
 enum Command {
     /// Generate image pairs with exact ground-truth flow through the metalens camera.
     Generate(GenerateArgs),
+    /// Pack a dataset into WebDataset tar shards with an index (train and eval read them directly).
+    Pack(PackArgs),
+    /// Unpack WebDataset shards written by `pins pack` back into a dataset folder.
+    Unpack(UnpackArgs),
     /// Apply the metalens camera model to one image.
     Simulate(SimulateArgs),
     /// Compute a metalens PSF by scalar diffraction and compare its spot with the Airy radius.
@@ -122,6 +129,8 @@ fn parse_cli() -> Cli {
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Generate(a) => generate(a),
+        Command::Pack(a) => pack(a),
+        Command::Unpack(a) => unpack(a),
         Command::Simulate(a) => simulate(a),
         Command::Psf(a) => psf(a),
         Command::Bench(a) => bench(a),

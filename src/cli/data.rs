@@ -105,6 +105,48 @@ pub(crate) struct GenerateArgs {
 }
 
 #[derive(clap::Args)]
+pub(crate) struct PackArgs {
+    /// Dataset folder (a `pins generate` folder or any layout pins reads).
+    #[arg(long = "in")]
+    input: PathBuf,
+    /// Output folder (must not exist): shard-NNNNNN.tar, index.json, and the dataset's
+    /// config.json and manifest.json when it has them.
+    #[arg(long)]
+    out: PathBuf,
+    /// Samples per tar file.
+    #[arg(long, default_value_t = 1000)]
+    samples_per_shard: usize,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct UnpackArgs {
+    /// Shard folder written by `pins pack`.
+    #[arg(long = "in")]
+    input: PathBuf,
+    /// Output folder (must not exist), in FlyingChairs naming.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub(crate) fn pack(a: PackArgs) -> Result<()> {
+    let s = pins::dataset::shards::pack(&a.input, &a.out, a.samples_per_shard)?;
+    println!(
+        "{}: {} samples in {} shards, {:.1} MB, index.json",
+        a.out.display(),
+        s.samples,
+        s.shards,
+        s.bytes as f64 / 1e6
+    );
+    Ok(())
+}
+
+pub(crate) fn unpack(a: UnpackArgs) -> Result<()> {
+    let n = pins::dataset::shards::unpack(&a.input, &a.out)?;
+    println!("{}: {n} samples unpacked", a.out.display());
+    Ok(())
+}
+
+#[derive(clap::Args)]
 pub(crate) struct SimulateArgs {
     /// Input image (PNG 8/16-bit, JPEG, PPM, TIFF, EXR, .npy).
     #[arg(long = "in")]

@@ -8,6 +8,7 @@ pub mod integrity;
 pub mod manifest;
 pub mod scheduler;
 pub mod sequence;
+pub mod shards;
 pub mod verify;
 
 pub use config::{GeneratorConfig, SceneSpec};

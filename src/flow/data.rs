@@ -3,11 +3,13 @@
 //! flow-consistent augmentation.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use burn::prelude::*;
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
+use crate::dataset::shards::{ShardSet, is_shard_folder};
 use crate::error::{Error, Result};
 use crate::io;
 use crate::rng;
@@ -19,16 +21,31 @@ use crate::types::{Flow, Image};
 pub struct FlowDataset {
     pub root: PathBuf,
     pub pairs: Vec<PairPaths>,
+    /// A shard folder (`pins pack`): the set, and each pair's sample index in it (parallel to
+    /// `pairs`). The pairs are then read out of the tar files, never unpacked.
+    shards: Option<(Arc<ShardSet>, Vec<usize>)>,
 }
 
 impl FlowDataset {
     /// Opens `root` (a `pins generate` folder or any FlyingChairs, Sintel, Middlebury or KITTI
     /// layout) and keeps the pairs that have flow. Errors when none has.
     pub fn open(root: &Path) -> Result<Self> {
-        let pairs: Vec<PairPaths> = discover(root, Layout::Auto)?
-            .into_iter()
-            .filter(|p| p.flow.is_some())
-            .collect();
+        let (pairs, shards): (Vec<PairPaths>, _) = if is_shard_folder(root) {
+            let set = Arc::new(ShardSet::open(root)?);
+            let (ids, pairs) = set
+                .pairs()
+                .into_iter()
+                .enumerate()
+                .filter(|(_, p)| p.flow.is_some())
+                .unzip();
+            (pairs, Some((set, ids)))
+        } else {
+            let pairs = discover(root, Layout::Auto)?
+                .into_iter()
+                .filter(|p| p.flow.is_some())
+                .collect();
+            (pairs, None)
+        };
         if pairs.is_empty() {
             return Err(Error::invalid(
                 "dataset",
@@ -38,7 +55,20 @@ impl FlowDataset {
         Ok(Self {
             root: root.to_path_buf(),
             pairs,
+            shards,
         })
+    }
+
+    /// The part `range` of the dataset (same root and source).
+    fn slice(&self, range: std::ops::Range<usize>) -> FlowDataset {
+        FlowDataset {
+            root: self.root.clone(),
+            pairs: self.pairs[range.clone()].to_vec(),
+            shards: self
+                .shards
+                .as_ref()
+                .map(|(set, ids)| (set.clone(), ids[range].to_vec())),
+        }
     }
 
     /// Splits off the last `fraction` of the pairs (at least one, and at least one left for
@@ -48,28 +78,19 @@ impl FlowDataset {
         let val = ((n as f64 * fraction).round() as usize).clamp(1, n.saturating_sub(1).max(1));
         let cut = n - val.min(n);
         let train = if cut == 0 {
-            self.pairs.clone()
+            self.clone()
         } else {
-            self.pairs[..cut].to_vec()
+            self.slice(0..cut)
         };
-        (
-            FlowDataset {
-                root: self.root.clone(),
-                pairs: train,
-            },
-            FlowDataset {
-                root: self.root.clone(),
-                pairs: self.pairs[cut..].to_vec(),
-            },
-        )
+        (train, self.slice(cut..n))
     }
 
     /// Fails unless some pair has at least one known ground-truth vector. Reads the flows in
     /// order and stops at the first known vector, so a normal dataset costs one flow file.
     pub fn check_has_known_flow(&self) -> Result<()> {
-        for p in &self.pairs {
-            if let Some(path) = &p.flow {
-                let flow = io::read_flow(path)?;
+        for i in 0..self.pairs.len() {
+            if self.pairs[i].flow.is_some() {
+                let flow = self.read_flow(i)?;
                 if flow.valid_mask().iter().any(|&v| v) {
                     return Ok(());
                 }
@@ -100,7 +121,10 @@ impl FlowDataset {
                 .flatten()
             {
                 let rel = f.strip_prefix(&self.root).unwrap_or(f);
-                let len = std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len();
+                let len = match &self.shards {
+                    Some((set, _)) => set.member_size(f).unwrap_or(0),
+                    None => std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len(),
+                };
                 hash.update(rel.to_string_lossy().as_bytes());
                 hash.update([0]);
                 hash.update(len.to_le_bytes());
@@ -116,12 +140,29 @@ impl FlowDataset {
     /// Loads pair `i`: two 3-channel images of equal size and the flow (NaN where unknown).
     pub fn load(&self, i: usize) -> Result<(Image, Image, Flow)> {
         let p = &self.pairs[i];
-        let (a, b) = io::read_image_pair(&p.img1, &p.img2)?;
+        let (a, b) = match &self.shards {
+            Some((set, ids)) => {
+                let read = |role: &str, path: &Path| -> Result<Image> {
+                    let bytes = set.read(ids[i], role)?.unwrap_or_default();
+                    io::decode_image(&bytes, path)
+                };
+                let (a, b) = (read("img1", &p.img1)?, read("img2", &p.img2)?);
+                if a.shape() != b.shape() {
+                    return Err(Error::shape(
+                        format!("image pair {}", p.name),
+                        format!("{}x{}", a.width(), a.height()),
+                        format!("{}x{}", b.width(), b.height()),
+                    ));
+                }
+                (a, b)
+            }
+            None => io::read_image_pair(&p.img1, &p.img2)?,
+        };
         let flow_path = p
             .flow
             .as_ref()
             .ok_or_else(|| Error::invalid("pair", format!("{} has no flow", p.name)))?;
-        let flow = io::read_flow(flow_path)?;
+        let flow = self.read_flow(i)?;
         if (flow.height(), flow.width()) != (a.height(), a.width()) {
             return Err(Error::shape(
                 format!("flow {}", flow_path.display()),
@@ -130,6 +171,24 @@ impl FlowDataset {
             ));
         }
         Ok((to_rgb(a), to_rgb(b), flow))
+    }
+}
+
+impl FlowDataset {
+    /// The flow of pair `i`, from its file or its shard.
+    fn read_flow(&self, i: usize) -> Result<Flow> {
+        let p = &self.pairs[i];
+        let path = p
+            .flow
+            .as_ref()
+            .ok_or_else(|| Error::invalid("pair", format!("{} has no flow", p.name)))?;
+        match &self.shards {
+            Some((set, ids)) => {
+                let bytes = set.read(ids[i], "flow")?.unwrap_or_default();
+                io::decode_flow(&bytes, path)
+            }
+            None => io::read_flow(path),
+        }
     }
 }
 

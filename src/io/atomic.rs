@@ -133,7 +133,7 @@ fn parse_temp_name(name: &str) -> Option<(Option<String>, u32)> {
 
 /// `dir/.name.tmp-<host>-<pid>-<n>`: hidden, unique per host, process and call, in the same
 /// directory so that the final rename stays on one file system.
-fn temp_sibling(path: &Path) -> PathBuf {
+pub fn temp_sibling(path: &Path) -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
