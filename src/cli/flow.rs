@@ -93,6 +93,11 @@ pub(crate) struct TrainArgs {
     /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
     #[arg(long, default_value = "cpu")]
     device: String,
+    /// Data-parallel training over several devices, e.g. `cpu,cpu` or `cuda:0,cuda:1`: each
+    /// step's batch is split among them and the gradients summed on the first; the result does
+    /// not depend on the number of devices. Replaces --device.
+    #[arg(long, value_delimiter = ',', conflicts_with = "device")]
+    devices: Option<Vec<String>>,
     /// Start from these weights (fine-tuning) instead of a random initialisation.
     #[arg(long)]
     init: Option<PathBuf>,
@@ -181,6 +186,16 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         model.name,
         a.data.display()
     );
+    let names = a.devices.clone().unwrap_or_else(|| vec![a.device.clone()]);
+    let mut devices = names
+        .iter()
+        .map(|n| pins::flow::device::select(n.trim()))
+        .collect::<pins::error::Result<Vec<_>>>()?;
+    if devices.is_empty() {
+        anyhow::bail!("--devices: name at least one device");
+    }
+    let device = devices.remove(0);
+    let replicas = devices;
     let opts = TrainOptions {
         data: a.data,
         out: a.out.clone(),
@@ -188,7 +203,8 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         steps: a.steps,
         stop_after: a.stop_after,
         init: a.init,
-        device: pins::flow::device::select(&a.device)?,
+        device,
+        replicas,
         progress: !a.quiet && std::io::stderr().is_terminal(),
     };
     let s = pins::flow::train::train(config, &opts)?;

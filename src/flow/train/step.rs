@@ -3,7 +3,7 @@
 //! loss of Eq. S16, the backward pass, global gradient clipping and the AdamW update. A
 //! non-finite loss or gradient norm stops the run.
 
-use burn::optim::{GradientsParams, ModuleOptimizer};
+use burn::optim::{GradientsAccumulator, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 
 use super::checkpoint;
@@ -11,7 +11,7 @@ use super::clip::clip_global_norm;
 use super::config::TrainConfig;
 use super::trainer::TrainOptions;
 use crate::error::{Error, Result};
-use crate::flow::data::{Batch, FlowDataset, make_example};
+use crate::flow::data::{Batch, Example, FlowDataset, make_example};
 use crate::flow::loss::{mean_epe, sequence_loss};
 use crate::flow::model::Mms;
 use crate::rng;
@@ -37,6 +37,21 @@ pub fn batch(
     step: usize,
     device: &Device,
 ) -> Result<Batch> {
+    Ok(Batch::stack(
+        examples(config, train_set, step)?,
+        config.crop[0],
+        config.crop[1],
+        device,
+    ))
+}
+
+/// The examples of step `step`'s batch, in order: a function of (seed, step) alone, whatever
+/// the number of devices they are then spread over.
+pub fn examples(
+    config: &TrainConfig,
+    train_set: &FlowDataset,
+    step: usize,
+) -> Result<Vec<Example>> {
     let mut r = rng::stream(config.seed, &[rng::purpose::TRAIN, step as u64]);
     let mut examples = Vec::with_capacity(config.batch_size);
     for _ in 0..config.batch_size {
@@ -51,12 +66,158 @@ pub fn batch(
             &mut r,
         )?);
     }
-    Ok(Batch::stack(
-        examples,
-        config.crop[0],
-        config.crop[1],
-        device,
+    Ok(examples)
+}
+
+/// Device `rank`'s share of a batch of `b` examples over `n` devices: a contiguous block,
+/// `[rank·b/n, (rank+1)·b/n)`, so the shares differ by at most one example.
+pub fn share(b: usize, n: usize, rank: usize) -> std::ops::Range<usize> {
+    (rank * b / n)..((rank + 1) * b / n)
+}
+
+/// Step `step` on `examples` spread over `devices` (data parallel; the first is the main device,
+/// which holds the model and the optimiser): each device runs a fork of the model on its share
+/// (`share`), its loss weighted by its share of the batch so that the weighted gradients sum to
+/// the whole batch's; the gradients are moved to the main device and summed, then clipped once
+/// and applied in one optimiser step. With one device this is `take` on the whole batch.
+#[allow(clippy::too_many_arguments)]
+pub fn take_parallel(
+    model: Mms,
+    optim: &mut ModuleOptimizer,
+    examples: Vec<Example>,
+    devices: &[Device],
+    config: &TrainConfig,
+    lr: f64,
+    step: usize,
+    opts: &TrainOptions,
+) -> Result<(Mms, StepStats)> {
+    let (h, w) = (config.crop[0], config.crop[1]);
+    let b = examples.len();
+    if devices.len() <= 1 {
+        let device = devices
+            .first()
+            .cloned()
+            .unwrap_or_else(|| model.devices()[0].clone());
+        return take(
+            model,
+            optim,
+            Batch::stack(examples, h, w, &device),
+            config,
+            lr,
+            step,
+            opts,
+        );
+    }
+    if b < devices.len() {
+        return Err(Error::invalid(
+            "--devices",
+            format!(
+                "{} devices need a batch_size of at least {}, got {b}",
+                devices.len(),
+                devices.len()
+            ),
+        ));
+    }
+    let main = devices[0].clone();
+    let mut shares: Vec<Vec<Example>> = Vec::with_capacity(devices.len());
+    let mut rest = examples;
+    for rank in (0..devices.len()).rev() {
+        let r = share(b, devices.len(), rank);
+        shares.push(rest.split_off(r.start));
+    }
+    shares.reverse();
+    // Each device: forward, weighted loss, backward, its gradients on the main device.
+    type RankOut = (GradientsParams, f32, f32, f32);
+    let outs: Vec<Result<RankOut>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = shares
+            .into_iter()
+            .zip(devices)
+            .map(|(part, device)| {
+                let (model, main) = (&model, &main);
+                scope.spawn(move || -> Result<RankOut> {
+                    let weight = part.len() as f32 / b as f32;
+                    let replica = model.clone().fork(device);
+                    let batch = Batch::stack(part, h, w, device);
+                    let preds = replica.forward(batch.img1, batch.img2, config.iters, true);
+                    let loss =
+                        sequence_loss(&preds, batch.flow.clone(), batch.valid.clone(), config.rho)
+                            .mul_scalar(weight);
+                    let loss_value: f32 = loss.clone().into_scalar();
+                    let (num, den) = preds
+                        .last()
+                        .map(|p| epe_sums(p.clone(), batch.flow, batch.valid))
+                        .unwrap_or((f32::NAN, 1.0));
+                    let grads = GradientsParams::from_grads(loss.backward(), &replica)
+                        .to_device(main, &replica);
+                    Ok((grads, loss_value, num, den))
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(Error::invalid("training", "a device's step panicked")))
+            })
+            .collect()
+    });
+    let mut acc = GradientsAccumulator::<Mms>::new();
+    let (mut loss_value, mut num, mut den) = (0.0f32, 0.0f32, 0.0f32);
+    for out in outs {
+        let (grads, l, n, d) = out?;
+        acc.accumulate(&model, grads);
+        loss_value += l;
+        num += n;
+        den += d;
+    }
+    if !loss_value.is_finite() {
+        return Err(non_finite_loss(loss_value, step, opts));
+    }
+    let mut grads = acc.grads();
+    let grad_norm = clip_global_norm(&model, &mut grads, config.clip);
+    if !grad_norm.is_finite() {
+        return Err(Error::invalid(
+            "training",
+            format!(
+                "gradient norm became {grad_norm} at step {step}; stopped, last checkpoint kept"
+            ),
+        ));
+    }
+    let model = optim.step(lr, model, grads);
+    Ok((
+        model,
+        StepStats {
+            loss: loss_value,
+            epe: num / den.max(1.0),
+            grad_norm,
+        },
     ))
+}
+
+/// The error of a non-finite loss, naming the last good checkpoint.
+fn non_finite_loss(loss_value: f32, step: usize, opts: &TrainOptions) -> Error {
+    Error::invalid(
+        "training",
+        format!(
+            "loss became {loss_value} at step {step}; stopped. The last good checkpoint (step {}) is kept in {}",
+            checkpoint::read(&opts.out)
+                .ok()
+                .flatten()
+                .map(|c| c.0.step)
+                .unwrap_or(0),
+            checkpoint::dir(&opts.out).display()
+        ),
+    )
+}
+
+/// Σ EPE·valid and Σ valid of the last prediction, for a batch spread over devices.
+///
+/// # Shapes
+/// `[B, 2, H, W]`, `[B, 2, H, W]`, `[B, 1, H, W]` → (scalar, scalar)
+fn epe_sums(pred: Tensor<4>, gt: Tensor<4>, valid: Tensor<4>) -> (f32, f32) {
+    let epe = (pred - gt).powi_scalar(2).sum_dim(1).sqrt(); // [B, 1, H, W]
+    let num: f32 = (epe * valid.clone()).sum().into_scalar();
+    (num, valid.sum().into_scalar())
 }
 
 /// Step `step` on `batch` at learning rate `lr`: the updated network and what the step
@@ -74,18 +235,7 @@ pub fn take(
     let loss = sequence_loss(&preds, batch.flow.clone(), batch.valid.clone(), config.rho);
     let loss_value: f32 = loss.clone().into_scalar();
     if !loss_value.is_finite() {
-        return Err(Error::invalid(
-            "training",
-            format!(
-                "loss became {loss_value} at step {step}; stopped. The last good checkpoint (step {}) is kept in {}",
-                checkpoint::read(&opts.out)
-                    .ok()
-                    .flatten()
-                    .map(|c| c.0.step)
-                    .unwrap_or(0),
-                checkpoint::dir(&opts.out).display()
-            ),
-        ));
+        return Err(non_finite_loss(loss_value, step, opts));
     }
     let epe = preds
         .last()

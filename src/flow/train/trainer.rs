@@ -36,6 +36,10 @@ pub struct TrainOptions {
     pub progress: bool,
     /// Where to train (`Device::flex()` by default, see [`crate::flow::device::select`]).
     pub device: Device,
+    /// Further devices for data-parallel training (`--devices a,b,…`: `device` is the first);
+    /// each step's batch is spread over all of them and the result does not depend on how
+    /// many there are (see [`step::take_parallel`]).
+    pub replicas: Vec<Device>,
     /// Start a new run from these weights (fine-tuning) instead of a random initialisation.
     pub init: Option<PathBuf>,
 }
@@ -72,6 +76,20 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     setup::check_crop(&train_set, &config, opts)?;
     let mut run = setup::start(&config, &model_config, existing, start, opts)?;
 
+    let devices: Vec<Device> = std::iter::once(run.device.clone())
+        .chain(opts.replicas.iter().map(|d| d.clone().autodiff()))
+        .collect();
+    if devices.len() > config.batch_size {
+        return Err(Error::invalid(
+            "--devices",
+            format!(
+                "{} devices need a batch_size of at least {}, got {}",
+                devices.len(),
+                devices.len(),
+                config.batch_size
+            ),
+        ));
+    }
     let bar = progress_bar(opts.progress, config.steps, start);
     let mut step = start;
     let stop = opts
@@ -80,15 +98,23 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     while step < stop {
         let t0 = Instant::now();
         let lr = one_cycle(step, config.steps, config.lr, config.pct_start);
-        let batch = step::batch(&config, &train_set, step, &run.device)?;
-        let (model, stats) =
-            match step::take(run.model, &mut run.optim, batch, &config, lr, step, opts) {
-                Ok(taken) => taken,
-                Err(e) => {
-                    bar.abandon();
-                    return Err(e);
-                }
-            };
+        let examples = step::examples(&config, &train_set, step)?;
+        let (model, stats) = match step::take_parallel(
+            run.model,
+            &mut run.optim,
+            examples,
+            &devices,
+            &config,
+            lr,
+            step,
+            opts,
+        ) {
+            Ok(taken) => taken,
+            Err(e) => {
+                bar.abandon();
+                return Err(e);
+            }
+        };
         run.model = model;
         step += 1;
         run.last_loss = Some(stats.loss as f64);

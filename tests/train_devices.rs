@@ -1,0 +1,203 @@
+//! Data-parallel training (`pins train --devices`): two CPU devices with half the batch each
+//! take the same steps as one device with the whole batch (loss and updated weights to 1e-6),
+//! a resumed two-device run continues bit-exactly, and a batch smaller than the device count is
+//! refused.
+
+mod common;
+use common::{failed, ok, pins};
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use pins::dataset::{Generator, GeneratorConfig, SceneSpec, Shard};
+use pins::imaging::CameraConfig;
+use pins::scene::ChairsConfig;
+
+fn dataset(dir: &Path) -> PathBuf {
+    let out = dir.join("data");
+    let cfg = GeneratorConfig {
+        count: 6,
+        seed: 5,
+        scene: SceneSpec::Chairs(ChairsConfig {
+            width: 80,
+            height: 64,
+            sprites: [1, 2],
+            supersample: 1,
+            ..ChairsConfig::default()
+        }),
+        camera: CameraConfig::ideal(),
+        save_clean: false,
+    };
+    Generator::new(cfg)
+        .unwrap()
+        .run(&out, Shard::ALL, false)
+        .unwrap();
+    out
+}
+
+fn config(dir: &Path, batch: usize, steps: usize) -> PathBuf {
+    let p = dir.join(format!("train{batch}_{steps}.json"));
+    fs::write(
+        &p,
+        format!(
+            r#"{{"model": "mms-small", "steps": {steps}, "batch_size": {batch}, "crop": [64, 64],
+                "iters": 2, "val_fraction": 0.2, "val_every": 4, "val_max_pairs": 1,
+                "val_iters": 2, "checkpoint_every": 1}}"#
+        ),
+    )
+    .unwrap();
+    p
+}
+
+/// Every f32 tensor of a safetensors file, by name.
+fn tensors(path: &Path) -> Vec<(String, Vec<f32>)> {
+    let bytes = fs::read(path).unwrap();
+    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + n]).unwrap();
+    let data = &bytes[8 + n..];
+    let mut out: Vec<(String, Vec<f32>)> = header
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(k, v)| *k != "__metadata__" && v["dtype"] == "F32")
+        .map(|(k, v)| {
+            let (a, b) = (
+                v["data_offsets"][0].as_u64().unwrap() as usize,
+                v["data_offsets"][1].as_u64().unwrap() as usize,
+            );
+            let vals = data[a..b]
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+                .collect();
+            (k.clone(), vals)
+        })
+        .collect();
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    out
+}
+
+fn log_column(run: &Path, col: usize) -> Vec<f64> {
+    fs::read_to_string(run.join("log.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn two_devices_with_half_the_batch_equal_one_with_all_of_it() {
+    let d = tempfile::tempdir().unwrap();
+    let data = dataset(d.path());
+    let run = |name: &str, steps: usize, extra: &[&str]| {
+        let cfg = config(d.path(), 2, steps);
+        let out = d.path().join(name);
+        let mut args = vec![
+            "train",
+            "--config",
+            s(&cfg),
+            "--data",
+            s(&data),
+            "--out",
+            s(&out),
+            "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        ok(&pins(&args));
+        out
+    };
+    // One step: the loss, the EPE and every updated weight agree to 1e-6.
+    let (one, two) = (run("one", 1, &[]), run("two", 1, &["--devices", "cpu,cpu"]));
+    let close = |a: &[f64], b: &[f64], tol: f64| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= tol * x.abs().max(1.0))
+    };
+    for col in [2, 3] {
+        let (a, b) = (log_column(&one, col), log_column(&two, col));
+        assert!(close(&a, &b, 1e-6), "column {col}: {a:?} against {b:?}");
+    }
+    let (wa, wb) = (
+        tensors(&one.join("last.safetensors")),
+        tensors(&two.join("last.safetensors")),
+    );
+    assert_eq!(wa.len(), wb.len());
+    assert!(!wa.is_empty());
+    let mut worst = 0.0f32;
+    for ((na, a), (nb, b)) in wa.iter().zip(&wb) {
+        assert_eq!(na, nb);
+        for (x, y) in a.iter().zip(b) {
+            worst = worst.max((x - y).abs());
+        }
+    }
+    assert!(worst <= 1e-6, "weights differ by {worst}");
+    // Four steps: the losses still agree. (Not every weight: the biases in front of an
+    // instance norm have a true gradient of zero, so theirs is rounding noise, which AdamW
+    // normalises into steps of the learning rate's size whatever the summation order.)
+    let (one, two) = (
+        run("one4", 4, &[]),
+        run("two4", 4, &["--devices", "cpu,cpu"]),
+    );
+    for col in [2, 3] {
+        let (a, b) = (log_column(&one, col), log_column(&two, col));
+        assert!(close(&a, &b, 1e-4), "column {col}: {a:?} against {b:?}");
+    }
+    let cfg = config(d.path(), 2, 4);
+    // Interrupted after 2 steps and resumed on two devices: bit-exact with the straight run.
+    let part = d.path().join("part");
+    let args = [
+        "train",
+        "--config",
+        s(&cfg),
+        "--data",
+        s(&data),
+        "--out",
+        s(&part),
+        "--quiet",
+        "--devices",
+        "cpu,cpu",
+    ];
+    let mut first = args.to_vec();
+    first.extend(["--stop-after", "2"]);
+    ok(&pins(&first));
+    let mut again = args.to_vec();
+    again.push("--resume");
+    ok(&pins(&again));
+    assert!(
+        fs::read(part.join("last.safetensors")).unwrap()
+            == fs::read(two.join("last.safetensors")).unwrap(),
+        "a resumed two-device run differs"
+    );
+    // Two devices need at least two examples per batch.
+    let small = config(d.path(), 1, 4);
+    let err = failed(&pins(&[
+        "train",
+        "--config",
+        s(&small),
+        "--data",
+        s(&data),
+        "--out",
+        s(&d.path().join("x")),
+        "--devices",
+        "cpu,cpu",
+    ]));
+    assert!(
+        err.contains("--devices") && err.contains("batch_size"),
+        "{err}"
+    );
+    let err = failed(&pins(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&d.path().join("y")),
+        "--devices",
+        "cpu,tpu",
+    ]));
+    assert!(err.contains("tpu"), "{err}");
+}
