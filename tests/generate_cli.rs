@@ -477,8 +477,11 @@ fn run_together(runs: &[Vec<String>]) -> Vec<std::process::Output> {
     )
 }
 
+/// A run's arguments and its extra environment variables.
+type EnvRun = (Vec<String>, Vec<(String, String)>);
+
 /// As `run_together`, each run with its own extra environment variables.
-fn run_together_env(runs: &[(Vec<String>, Vec<(String, String)>)]) -> Vec<std::process::Output> {
+fn run_together_env(runs: &[EnvRun]) -> Vec<std::process::Output> {
     use std::process::{Command, Stdio};
     let children: Vec<_> = runs
         .iter()
