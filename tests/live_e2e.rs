@@ -191,3 +191,82 @@ fn the_browser_view_serves_the_page_the_frames_and_the_figures() {
     assert!(st.is_some_and(|s| s.success()));
     h.join().unwrap();
 }
+
+/// The live pipeline and `pins track --frames` on the same frames find the same objects at the
+/// same places with the same forecasts: one tracker, whichever command feeds it.
+#[test]
+fn live_on_a_folder_tracks_as_pins_track_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for (k, f) in scene().iter().enumerate() {
+        std::fs::write(frames.join(format!("{k:05}.jpg")), f).unwrap();
+    }
+    let (live_out, track_out) = (dir.path().join("live"), dir.path().join("track"));
+    let st = pins()
+        .arg("--frames")
+        .arg(&frames)
+        .args(["--fps", "15", "--horizons", "1,5"])
+        .arg("--out")
+        .arg(&live_out)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let o = Command::new(env!("CARGO_BIN_EXE_pins"))
+        .args([
+            "track",
+            "--iters",
+            "4",
+            "--confirm",
+            "2",
+            "--horizons",
+            "1,5",
+        ])
+        .arg("--frames")
+        .arg(&frames)
+        .arg("--out")
+        .arg(&track_out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let tracked: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(track_out.join("tracks.json")).unwrap())
+            .unwrap();
+    let mut compared = 0;
+    for line in std::fs::read_to_string(live_out.join("tracks.jsonl"))
+        .unwrap()
+        .lines()
+    {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let frame = v["frame"].as_u64().unwrap();
+        for obj in v["objects"].as_array().unwrap() {
+            let track = tracked["objects"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|t| t["id"] == obj["id"])
+                .unwrap_or_else(|| panic!("live object {obj} has no track in {tracked}"));
+            let rec = track["frames"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|r| r["frame"].as_u64() == Some(frame))
+                .unwrap_or_else(|| panic!("frame {frame} of {obj} missing from pins track"));
+            for (a, b) in [
+                (&obj["centroid"], &rec["centroid"]),
+                (&obj["predicted"]["1"], &rec["predicted"]["1"]),
+                (&obj["predicted"]["5"], &rec["predicted"]["5"]),
+            ] {
+                for k in 0..2 {
+                    let (x, y) = (a[k].as_f64().unwrap(), b[k].as_f64().unwrap());
+                    assert!(
+                        (x - y).abs() < 1e-3,
+                        "frame {frame}: live {a} against track {b}"
+                    );
+                }
+            }
+            compared += 1;
+        }
+    }
+    assert!(compared >= 3, "too few tracked frames compared: {compared}");
+}
