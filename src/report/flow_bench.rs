@@ -11,6 +11,7 @@ use super::bench::median_ms;
 use crate::error::{Error, Result};
 use crate::flow::loss::sequence_loss;
 use crate::flow::model::{Mms, MmsConfig};
+use crate::flow::train::clip::clip_global_norm;
 use crate::flow::weights::parameter_count;
 
 /// One measurement, printed as a JSON line.
@@ -90,13 +91,30 @@ pub fn run(
                 &device,
             );
             let valid = Tensor::<4>::ones([batch, 1, height, width], &device);
+            let tensors = parameter_tensors(&net);
+            // A step counts only if its backward pass gave a finite gradient for every
+            // parameter tensor: the norm reads every gradient, so a backend whose backward
+            // fails (or silently skips a layer) is reported instead of timed.
+            let mut failure: Option<String> = None;
             let mut step = || {
                 let preds = net.forward(a.clone(), b.clone(), iters, true);
                 let loss = sequence_loss(&preds, gt.clone(), valid.clone(), 0.8);
-                let grads = GradientsParams::from_grads(loss.backward(), &net);
+                let mut grads = GradientsParams::from_grads(loss.backward(), &net);
+                let (got, norm) = (
+                    grads.len(),
+                    clip_global_norm(&net, &mut grads, f64::INFINITY),
+                );
+                if got != tensors || !norm.is_finite() {
+                    failure.get_or_insert(format!(
+                        "the backward pass gave {got} of {tensors} gradients, norm {norm}"
+                    ));
+                }
                 net = optim.step(4e-4, net.clone(), grads);
             };
             let ms = median_ms(reps, &mut step);
+            if let Some(f) = failure {
+                return Err(Error::invalid("bench-flow --mode train", f));
+            }
             (ms, batch, params)
         }
         other => {
@@ -117,4 +135,17 @@ pub fn run(
         peak_rss_mb: peak_rss_mb(),
         params,
     })
+}
+
+/// The number of parameter tensors of `module` (each should get a gradient).
+fn parameter_tensors<M: burn::module::Module>(module: &M) -> usize {
+    struct Count(usize);
+    impl burn::module::ModuleVisitor for Count {
+        fn visit_float<const D: usize>(&mut self, _: &burn::module::Param<Tensor<D>>) {
+            self.0 += 1;
+        }
+    }
+    let mut c = Count(0);
+    module.visit(&mut c);
+    c.0
 }
