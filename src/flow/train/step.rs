@@ -173,7 +173,26 @@ pub fn take_parallel(
     if !loss_value.is_finite() {
         return Err(non_finite_loss(loss_value, step, opts));
     }
-    let mut grads = acc.grads();
+    let (model, grad_norm) = clip_and_step(model, optim, acc.grads(), config, lr, step)?;
+    Ok((
+        model,
+        StepStats {
+            loss: loss_value,
+            epe: num / den.max(1.0),
+            grad_norm,
+        },
+    ))
+}
+
+/// Global-norm clipping and one optimiser step; a non-finite gradient norm stops the run.
+fn clip_and_step(
+    model: Mms,
+    optim: &mut ModuleOptimizer,
+    mut grads: GradientsParams,
+    config: &TrainConfig,
+    lr: f64,
+    step: usize,
+) -> Result<(Mms, f64)> {
     let grad_norm = clip_global_norm(&model, &mut grads, config.clip);
     if !grad_norm.is_finite() {
         return Err(Error::invalid(
@@ -183,15 +202,7 @@ pub fn take_parallel(
             ),
         ));
     }
-    let model = optim.step(lr, model, grads);
-    Ok((
-        model,
-        StepStats {
-            loss: loss_value,
-            epe: num / den.max(1.0),
-            grad_norm,
-        },
-    ))
+    Ok((optim.step(lr, model, grads), grad_norm))
 }
 
 /// The error of a non-finite loss, naming the last good checkpoint.
@@ -241,17 +252,8 @@ pub fn take(
         .last()
         .map(|p| mean_epe(p.clone(), batch.flow, batch.valid))
         .unwrap_or(f32::NAN);
-    let mut grads = GradientsParams::from_grads(loss.backward(), &model);
-    let grad_norm = clip_global_norm(&model, &mut grads, config.clip);
-    if !grad_norm.is_finite() {
-        return Err(Error::invalid(
-            "training",
-            format!(
-                "gradient norm became {grad_norm} at step {step}; stopped, last checkpoint kept"
-            ),
-        ));
-    }
-    let model = optim.step(lr, model, grads);
+    let grads = GradientsParams::from_grads(loss.backward(), &model);
+    let (model, grad_norm) = clip_and_step(model, optim, grads, config, lr, step)?;
     let stats = StepStats {
         loss: loss_value,
         epe,
