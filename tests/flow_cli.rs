@@ -17,25 +17,7 @@ fn tiny_dataset(dir: &Path) -> PathBuf {
 }
 
 fn tiny_dataset_of(dir: &Path, name: &str, count: usize) -> PathBuf {
-    let out = dir.join(name);
-    let cfg = GeneratorConfig {
-        count,
-        seed: 3,
-        scene: SceneSpec::Chairs(ChairsConfig {
-            width: 80,
-            height: 64,
-            sprites: [1, 2],
-            supersample: 1,
-            ..ChairsConfig::default()
-        }),
-        camera: CameraConfig::ideal(),
-        save_clean: false,
-    };
-    Generator::new(cfg)
-        .unwrap()
-        .run(&out, Shard::ALL, false)
-        .unwrap();
-    out
+    common::tiny_dataset(dir, name, count, 3)
 }
 
 fn tiny_train_config(dir: &Path) -> PathBuf {

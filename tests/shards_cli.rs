@@ -3,37 +3,11 @@
 //! sample order and results as the folder, and damaged shards refused by name.
 
 mod common;
-use common::{failed, ok, pins};
+use common::{failed, ok, pins, tiny_dataset};
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
-
-use pins::dataset::{Generator, GeneratorConfig, SceneSpec, Shard};
-use pins::imaging::CameraConfig;
-use pins::scene::ChairsConfig;
-
-fn dataset(dir: &Path, count: usize) -> PathBuf {
-    let out = dir.join("data");
-    let cfg = GeneratorConfig {
-        count,
-        seed: 8,
-        scene: SceneSpec::Chairs(ChairsConfig {
-            width: 80,
-            height: 64,
-            sprites: [1, 2],
-            supersample: 1,
-            ..ChairsConfig::default()
-        }),
-        camera: CameraConfig::ideal(),
-        save_clean: false,
-    };
-    Generator::new(cfg)
-        .unwrap()
-        .run(&out, Shard::ALL, false)
-        .unwrap();
-    out
-}
+use std::path::Path;
 
 fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     fs::read_dir(dir)
@@ -55,7 +29,7 @@ fn s(p: &Path) -> &str {
 #[test]
 fn packs_reproducibly_and_unpacks_exactly() {
     let d = tempfile::tempdir().unwrap();
-    let data = dataset(d.path(), 7);
+    let data = tiny_dataset(d.path(), "data", 7, 8);
     let (a, b) = (d.path().join("a"), d.path().join("b"));
     for out in [&a, &b] {
         let msg = ok(&pins(&[
@@ -125,7 +99,7 @@ fn packs_reproducibly_and_unpacks_exactly() {
 #[test]
 fn train_and_eval_read_shards_as_they_read_the_folder() {
     let d = tempfile::tempdir().unwrap();
-    let data = dataset(d.path(), 5);
+    let data = tiny_dataset(d.path(), "data", 5, 8);
     let shards = d.path().join("shards");
     ok(&pins(&[
         "pack",
@@ -202,7 +176,7 @@ fn train_and_eval_read_shards_as_they_read_the_folder() {
 #[test]
 fn damaged_shards_are_refused_by_name() {
     let d = tempfile::tempdir().unwrap();
-    let data = dataset(d.path(), 4);
+    let data = tiny_dataset(d.path(), "data", 4, 8);
     let shards = d.path().join("shards");
     ok(&pins(&[
         "pack",

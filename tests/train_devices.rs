@@ -4,36 +4,10 @@
 //! refused.
 
 mod common;
-use common::{failed, ok, pins};
+use common::{failed, ok, pins, tiny_dataset};
 
 use std::fs;
 use std::path::{Path, PathBuf};
-
-use pins::dataset::{Generator, GeneratorConfig, SceneSpec, Shard};
-use pins::imaging::CameraConfig;
-use pins::scene::ChairsConfig;
-
-fn dataset(dir: &Path) -> PathBuf {
-    let out = dir.join("data");
-    let cfg = GeneratorConfig {
-        count: 6,
-        seed: 5,
-        scene: SceneSpec::Chairs(ChairsConfig {
-            width: 80,
-            height: 64,
-            sprites: [1, 2],
-            supersample: 1,
-            ..ChairsConfig::default()
-        }),
-        camera: CameraConfig::ideal(),
-        save_clean: false,
-    };
-    Generator::new(cfg)
-        .unwrap()
-        .run(&out, Shard::ALL, false)
-        .unwrap();
-    out
-}
 
 fn config(dir: &Path, batch: usize, steps: usize) -> PathBuf {
     let p = dir.join(format!("train{batch}_{steps}.json"));
@@ -92,7 +66,7 @@ fn s(p: &Path) -> &str {
 #[test]
 fn two_devices_with_half_the_batch_equal_one_with_all_of_it() {
     let d = tempfile::tempdir().unwrap();
-    let data = dataset(d.path());
+    let data = tiny_dataset(d.path(), "data", 6, 5);
     let run = |name: &str, steps: usize, extra: &[&str]| {
         let cfg = config(d.path(), 2, steps);
         let out = d.path().join(name);

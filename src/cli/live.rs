@@ -132,7 +132,7 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
         }
         None => None,
     };
-    pins::live::resize::downscale(&pins::Image::zeros(1, 8, 8), a.scale)?;
+    pins::imaging::resize::downscale(&pins::Image::zeros(1, 8, 8), a.scale)?;
     let mut pipeline = Pipeline::new(
         predictor,
         PipelineConfig {

@@ -63,6 +63,8 @@ pub struct ShardIndex {
 pub struct ShardSet {
     pub root: PathBuf,
     pub index: ShardIndex,
+    /// Sample `i` (in `samples()` order) → (shard, position in its shard).
+    positions: Vec<(usize, usize)>,
 }
 
 /// Whether `dir` is a shard folder (it holds an `index.json` of this format).
@@ -353,9 +355,16 @@ impl ShardSet {
                 }
             }
         }
+        let positions = index
+            .shards
+            .iter()
+            .enumerate()
+            .flat_map(|(k, s)| (0..s.samples.len()).map(move |j| (k, j)))
+            .collect();
         Ok(Self {
             root: root.to_path_buf(),
             index,
+            positions,
         })
     }
 
@@ -389,9 +398,7 @@ impl ShardSet {
 
     /// The bytes of member `role` of sample `i` (in `samples()` order), read from its range.
     pub fn read(&self, i: usize, role: &str) -> Result<Option<Vec<u8>>> {
-        let Some((s, x)) = self.samples().nth(i) else {
-            return Err(Error::invalid("shards", format!("no sample {i}")));
-        };
+        let (s, x) = self.sample(i)?;
         let Some(m) = x.members.get(role) else {
             return Ok(None);
         };
@@ -404,17 +411,19 @@ impl ShardSet {
         Ok(Some(buf))
     }
 
-    /// The size of the member a virtual path of `pairs()` names.
-    pub fn member_size(&self, path: &Path) -> Option<u64> {
-        let name = path.file_name()?.to_str()?;
-        let file = path.parent()?.file_name()?.to_str()?;
-        let shard = self.index.shards.iter().find(|s| s.file == file)?;
-        shard
-            .samples
-            .iter()
-            .flat_map(|x| x.members.values())
-            .find(|m| m.name == name)
-            .map(|m| m.size)
+    /// The byte size of member `role` of sample `i`, if it has one.
+    pub fn member_size(&self, i: usize, role: &str) -> Result<Option<u64>> {
+        Ok(self.sample(i)?.1.members.get(role).map(|m| m.size))
+    }
+
+    /// Sample `i` and its shard file, in constant time.
+    fn sample(&self, i: usize) -> Result<(&ShardFile, &Sample)> {
+        let &(k, j) = self
+            .positions
+            .get(i)
+            .ok_or_else(|| Error::invalid("shards", format!("no sample {i}")))?;
+        let shard = &self.index.shards[k];
+        Ok((shard, &shard.samples[j]))
     }
 
     /// Checks every shard file against its recorded SHA-256; the error names each bad one.

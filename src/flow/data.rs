@@ -113,16 +113,20 @@ impl FlowDataset {
     pub fn fingerprint(&self) -> Result<DataFingerprint> {
         use sha2::{Digest, Sha256};
         let mut hash = Sha256::new();
-        for p in &self.pairs {
+        for (i, p) in self.pairs.iter().enumerate() {
             hash.update(p.name.as_bytes());
             hash.update([0]);
-            for f in [Some(&p.img1), Some(&p.img2), p.flow.as_ref()]
-                .into_iter()
-                .flatten()
+            for (role, f) in [
+                ("img1", Some(&p.img1)),
+                ("img2", Some(&p.img2)),
+                ("flow", p.flow.as_ref()),
+            ]
+            .into_iter()
+            .filter_map(|(role, f)| Some((role, f?)))
             {
                 let rel = f.strip_prefix(&self.root).unwrap_or(f);
                 let len = match &self.shards {
-                    Some((set, _)) => set.member_size(f).unwrap_or(0),
+                    Some((set, ids)) => set.member_size(ids[i], role)?.unwrap_or(0),
                     None => std::fs::metadata(f).map_err(|e| Error::io(f, e))?.len(),
                 };
                 hash.update(rel.to_string_lossy().as_bytes());

@@ -5,7 +5,7 @@
 
 use super::infer::Predictor;
 use crate::error::{Error, Result};
-use crate::live::resize::downscale;
+use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
 /// The flow from `img1` to `img2` estimated at `scale` ∈ (0, 1] of their size, returned at

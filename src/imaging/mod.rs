@@ -6,6 +6,7 @@ pub mod fft2;
 pub mod noise;
 pub mod pipeline;
 pub mod psf_source;
+pub mod resize;
 pub mod similarity;
 pub mod tone;
 pub mod tone_lut;

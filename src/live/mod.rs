@@ -15,7 +15,6 @@
 //! | `record.rs` | `--record` and `--replay` folders |
 //! | `tracking.rs` | the tracker of `pins track`, one flow at a time |
 //! | `pipeline.rs` | frames → flow → tracks → one JSON line per processed frame |
-//! | `resize.rs` | area downscaling (`--scale`) |
 //! | `view.rs` | the browser view's frame: tracks and predicted paths drawn, flow beside |
 //! | `serve.rs` | the browser view's HTTP server (page, MJPEG re-stream, JSON, SSE) |
 
@@ -27,7 +26,6 @@ pub mod multipart;
 pub mod pipeline;
 pub mod reader;
 pub mod record;
-pub mod resize;
 pub mod serve;
 pub mod socket;
 pub mod tracking;

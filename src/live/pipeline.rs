@@ -10,10 +10,10 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::reader::{Counts, Frame};
-use super::resize::downscale;
 use super::tracking::{LiveTracker, Object};
 use crate::error::Result;
 use crate::flow::infer::Predictor;
+use crate::imaging::resize::downscale;
 use crate::track::photometric::{GreyFrame, GreyPair};
 use crate::track::run::TrackOptions;
 use crate::types::{Flow, Image};

@@ -11,6 +11,7 @@ pub mod kalman;
 pub mod mtp;
 pub mod multi;
 pub mod photometric;
+pub mod points;
 pub mod predict;
 pub mod roi;
 pub mod run;

@@ -37,3 +37,33 @@ pub fn failed(out: &Output) -> String {
     );
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
+
+/// A small generated dataset (`count` chairs pairs of 80×64 with flow, through the ideal
+/// camera: fast) in `dir/name`.
+pub fn tiny_dataset(
+    dir: &std::path::Path,
+    name: &str,
+    count: usize,
+    seed: u64,
+) -> std::path::PathBuf {
+    use pins::dataset::{Generator, GeneratorConfig, SceneSpec, Shard};
+    let out = dir.join(name);
+    let cfg = GeneratorConfig {
+        count,
+        seed,
+        scene: SceneSpec::Chairs(pins::scene::ChairsConfig {
+            width: 80,
+            height: 64,
+            sprites: [1, 2],
+            supersample: 1,
+            ..pins::scene::ChairsConfig::default()
+        }),
+        camera: pins::imaging::CameraConfig::ideal(),
+        save_clean: false,
+    };
+    Generator::new(cfg)
+        .expect("generator")
+        .run(&out, Shard::ALL, false)
+        .expect("generate");
+    out
+}
