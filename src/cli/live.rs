@@ -274,7 +274,7 @@ fn track_options(a: &LiveArgs) -> Result<pins::track::run::TrackOptions> {
         threshold: a.threshold,
         noise_k: a.noise_k,
         min_area: a.min_area,
-        detect: DetectConfig::default(),
+        detect: DetectConfig::default().resolved(true),
         debug: false,
     })
 }

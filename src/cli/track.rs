@@ -69,8 +69,9 @@ struct RunArgs {
     /// Smallest region (pixels) that is an object.
     #[arg(long, default_value_t = 20)]
     min_area: usize,
-    /// Raise the threshold to the median flow magnitude plus K robust standard deviations in
-    /// frames where the flow jitters (estimated flow); 0 turns it off.
+    /// Without the change test: raise the threshold to the median flow magnitude plus K
+    /// robust standard deviations in frames where the flow jitters (estimated flow); 0 turns
+    /// it off.
     #[arg(long, default_value_t = 3.0)]
     noise_k: f64,
     /// Background-motion model fitted and subtracted before the threshold.
@@ -79,6 +80,16 @@ struct RunArgs {
     /// Turn off the photometric test (it runs whenever frames are given).
     #[arg(long)]
     no_photometric: bool,
+    /// The change test (with frames): a pixel moves only where the frames changed beyond
+    /// their noise, and each such seed grows to its object by the motion the frames confirm,
+    /// instead of the flow-noise floor of --noise-k. `auto`: on when MMS estimates the flow
+    /// here, off for --flows (turn it on for estimated flows read from files).
+    #[arg(long, value_enum, default_value = "auto")]
+    change_test: ChangeTest,
+    /// Change test: the frames' noise floor is their averaged difference's median plus this
+    /// many robust standard deviations.
+    #[arg(long, default_value_t = 4.0)]
+    change_k: f64,
     /// Photometric test: a region passes when its warp residual with its own flow is at most
     /// this fraction of the residual with the background's motion.
     #[arg(long, default_value_t = 0.8)]
@@ -87,6 +98,11 @@ struct RunArgs {
     /// is reported.
     #[arg(long, default_value_t = 5)]
     confirm: usize,
+    /// Confirmation: the centre may move up to this many times the sum of its flows, in
+    /// their direction (for a flow that underestimates small movers); 1 asks the flow to be
+    /// right within 2 px + 30 %.
+    #[arg(long, default_value_t = 1.0)]
+    consistency_max_ratio: f64,
     /// Write every frame's regions, their verdicts and reasons to DIR/regions.jsonl.
     #[arg(long)]
     debug: Option<PathBuf>,
@@ -104,6 +120,14 @@ enum Background {
     None,
     Translation,
     Affine,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ChangeTest {
+    /// On when MMS estimates the flow here (--frames alone), off for --flows.
+    Auto,
+    On,
+    Off,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -181,6 +205,7 @@ fn run(a: RunArgs) -> Result<()> {
             ..MtpConfig::default()
         },
         confirm: a.confirm,
+        consistency_max_ratio: a.consistency_max_ratio,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;
@@ -195,6 +220,12 @@ fn run(a: RunArgs) -> Result<()> {
         },
         photometric: !a.no_photometric,
         max_residual_ratio: a.max_residual_ratio,
+        change: match a.change_test {
+            ChangeTest::Auto => None,
+            ChangeTest::On => Some(true),
+            ChangeTest::Off => Some(false),
+        },
+        change_k: a.change_k,
         ..DetectConfig::default()
     };
     detect.validate()?;
@@ -207,7 +238,7 @@ fn run(a: RunArgs) -> Result<()> {
         threshold: a.threshold,
         noise_k: a.noise_k,
         min_area: a.min_area,
-        detect,
+        detect: detect.resolved(a.flows.is_none()),
         debug: a.debug.is_some(),
     };
     // Read the truth first so a bad file fails before any work.

@@ -340,7 +340,7 @@ pub fn run(
                     threshold: cfg.threshold,
                     noise_k: cfg.noise_k,
                     min_area: cfg.min_area,
-                    detect: cfg.detect.clone(),
+                    detect: cfg.detect.resolved(cfg.flow == FlowSource::Mms),
                     debug: false,
                 };
                 let tracks = track_clip(&data, &opts)?;

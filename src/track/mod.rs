@@ -3,9 +3,11 @@
 //! weighted polynomial fits and sub-step extrapolation, optimal assignment.
 
 pub mod background;
+pub mod change;
 pub mod detect;
 pub mod eval;
 pub mod experiment;
+pub mod grow;
 pub mod hungarian;
 pub mod kalman;
 pub mod mtp;

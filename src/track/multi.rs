@@ -34,6 +34,12 @@ pub struct TrackerConfig {
     /// `consistency_px + consistency_rel × |sum of flows|`. Infinite turns the test off.
     pub consistency_px: f64,
     pub consistency_rel: f64,
+    /// An estimated flow may underestimate a small mover (it smooths the object into its
+    /// background): above 1, a centre that moved further than the flows say, in their
+    /// direction (within 30°), is consistent up to this many times their sum. A spurious
+    /// blob, which stays where it is while its flow says it moves, still fails. 1 (the
+    /// default) asks the flow to be right within the tolerance above.
+    pub consistency_max_ratio: f64,
     /// The gate widens by half per coasted frame up to this many times `gate_px`.
     pub max_gate_factor: f64,
     /// Motion gate: a detection whose mean flow differs from the track's velocity by more
@@ -56,6 +62,7 @@ impl Default for TrackerConfig {
             patience: 15,
             consistency_px: 2.0,
             consistency_rel: 0.3,
+            consistency_max_ratio: 1.0,
             max_gate_factor: 2.0,
             velocity_gate_px: 2.0,
             velocity_gate_rel: 0.5,
@@ -131,6 +138,12 @@ impl Tracker {
             return Err(Error::invalid(
                 "tracker",
                 "gate must be finite and > 0, confirm >= 1",
+            ));
+        }
+        if config.consistency_max_ratio.is_nan() || config.consistency_max_ratio < 1.0 {
+            return Err(Error::invalid(
+                "tracker.consistency_max_ratio",
+                format!("must be >= 1, got {}", config.consistency_max_ratio),
             ));
         }
         if config.max_gate_factor.is_nan() || config.max_gate_factor < 1.0 {
@@ -217,11 +230,12 @@ impl Tracker {
         let horizon = horizon.max(1);
         self.assignments = vec![None; detections.len()];
         self.held.clear();
-        let (confirm, tol_px, tol_rel) = (
-            self.config.confirm,
-            self.config.consistency_px,
-            self.config.consistency_rel,
-        );
+        let confirm = self.config.confirm;
+        let tolerance = Consistency {
+            px: self.config.consistency_px,
+            rel: self.config.consistency_rel,
+            max_ratio: self.config.consistency_max_ratio,
+        };
         // Where the confirmed tracks are: a tentative track there is a fragment of their object.
         let exclusion = self.config.birth_exclusion_px;
         let mut occupied: Vec<(usize, (f64, f64))> = self
@@ -262,7 +276,7 @@ impl Tracker {
                     .find(|(_, c)| (c.0 - t.predicted.0).hypot(c.1 - t.predicted.1) <= exclusion);
                 let verdict = match beside {
                     Some((id, _)) => Some(format!("a fragment beside track {id}")),
-                    None => inconsistency(&t.window, tol_px, tol_rel),
+                    None => tolerance.verdict(&t.window),
                 };
                 match verdict {
                     None => {
@@ -362,25 +376,40 @@ impl Tracker {
     }
 }
 
-/// Why a tentative track's window is not one moving object, or `None` when it is: the centre
-/// moved from the first to the last hit by the sum of the flows in between (the flow of frame
-/// n is the displacement to frame n + 1), within `px + rel × |sum|`.
-fn inconsistency(window: &VecDeque<Hit>, px: f64, rel: f64) -> Option<String> {
-    let (first, last) = (window.front()?, window.back()?);
-    let k = window.len() - 1;
-    let (pu, pv) = window
-        .iter()
-        .take(k)
-        .fold((0.0, 0.0), |a, w| (a.0 + w.1.0, a.1 + w.1.1));
-    let (au, av) = (last.0.0 - first.0.0, last.0.1 - first.0.1);
-    let err = (au - pu).hypot(av - pv);
-    let tol = px + rel * pu.hypot(pv);
-    (err > tol).then(|| {
-        format!(
-            "inconsistent motion over {k} frames: the centre moved ({au:.1}, {av:.1}) px, \
-             the flow says ({pu:.1}, {pv:.1}) px (off by {err:.1} > {tol:.1})"
-        )
-    })
+/// The motion-consistency test of a tentative track (see `TrackerConfig`).
+struct Consistency {
+    px: f64,
+    rel: f64,
+    max_ratio: f64,
+}
+
+impl Consistency {
+    /// Why a tentative track's window is not one moving object, or `None` when it is: the
+    /// centre moved from the first to the last hit by the sum of the flows in between (the
+    /// flow of frame n is the displacement to frame n + 1), within `px + rel × |sum|`, or
+    /// further along the flows' direction (within 30°) by up to `max_ratio` times the sum.
+    fn verdict(&self, window: &VecDeque<Hit>) -> Option<String> {
+        let (first, last) = (window.front()?, window.back()?);
+        let k = window.len() - 1;
+        let (pu, pv) = window
+            .iter()
+            .take(k)
+            .fold((0.0, 0.0), |a, w| (a.0 + w.1.0, a.1 + w.1.1));
+        let (au, av) = (last.0.0 - first.0.0, last.0.1 - first.0.1);
+        let err = (au - pu).hypot(av - pv);
+        let (np, na) = (pu.hypot(pv), au.hypot(av));
+        let tol = self.px + self.rel * np;
+        let along = np > 0.0
+            && na >= np
+            && na <= self.max_ratio * np + self.px
+            && au * pu + av * pv >= (30f64).to_radians().cos() * na * np;
+        (err > tol && !along).then(|| {
+            format!(
+                "inconsistent motion over {k} frames: the centre moved ({au:.1}, {av:.1}) px, \
+                 the flow says ({pu:.1}, {pv:.1}) px (off by {err:.1} > {tol:.1})"
+            )
+        })
+    }
 }
 
 /// True when `point` lies within the equivalent radius √(area/π) of region `d`.
@@ -458,8 +487,43 @@ mod tests {
                 max_gate_factor: 0.5,
                 ..TrackerConfig::default()
             },
+            TrackerConfig {
+                consistency_max_ratio: 0.5,
+                ..TrackerConfig::default()
+            },
         ] {
             assert!(Tracker::new(c).is_err());
         }
+    }
+
+    #[test]
+    fn a_mover_whose_flow_underestimates_it_is_confirmed_unless_it_goes_astray() {
+        let window = |moved: (f64, f64), flow: (f64, f64)| -> VecDeque<Hit> {
+            (0..5)
+                .map(|k| {
+                    let t = k as f64 / 4.0;
+                    ((10.0 + moved.0 * t, 20.0 + moved.1 * t), flow)
+                })
+                .collect()
+        };
+        let c = Consistency {
+            px: 2.0,
+            rel: 0.3,
+            max_ratio: 4.0,
+        };
+        // The flow says 2 px/frame (8 px over the window); the centre moved 20 px its way.
+        assert!(c.verdict(&window((20.0, 0.0), (2.0, 0.0))).is_none());
+        assert!(c.verdict(&window((17.0, 9.0), (2.0, 0.0))).is_none(), "28°");
+        // Astray: the other way, at right angles, still, or far beyond the ratio.
+        for moved in [(-20.0, 0.0), (0.0, 20.0), (0.3, 0.0), (60.0, 0.0)] {
+            assert!(c.verdict(&window(moved, (2.0, 0.0))).is_some(), "{moved:?}");
+        }
+        // With the ratio at 1 the test is the symmetric one.
+        let strict = Consistency {
+            max_ratio: 1.0,
+            ..c
+        };
+        assert!(strict.verdict(&window((20.0, 0.0), (2.0, 0.0))).is_some());
+        assert!(strict.verdict(&window((9.0, 0.0), (2.0, 0.0))).is_none());
     }
 }

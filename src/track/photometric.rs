@@ -90,6 +90,42 @@ impl GreyPair {
         (n > 0).then(|| (sf / n as f64, sn / n as f64))
     }
 
+    /// Mean |frame 1 − frame 2 shifted by the constant `motion`| over `pixels`, counting only
+    /// pixels whose sample lands inside the frame; `None` when none does.
+    pub fn residual_of(&self, pixels: &[usize], motion: (f64, f64)) -> Option<f64> {
+        let w = self.width;
+        let (mut s, mut n) = (0.0f64, 0usize);
+        for &p in pixels {
+            if p >= w * self.height {
+                continue;
+            }
+            let (x, y) = ((p % w) as f64, (p / w) as f64);
+            if let Some(b) = self.sample(x + motion.0, y + motion.1) {
+                s += (self.a[p] as f64 - b).abs();
+                n += 1;
+            }
+        }
+        (n > 0).then(|| s / n as f64)
+    }
+
+    /// |frame 1 − frame 2 warped by `null`| at every pixel (`[H, W]`, grey levels in [0, 1]):
+    /// the temporal difference with the background's motion compensated; NaN where the
+    /// warped sample falls outside the frame.
+    pub fn difference(&self, null: &GlobalMotion) -> Vec<f32> {
+        let (w, h) = (self.width, self.height);
+        let mut out = vec![f32::NAN; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (nu, nv) = null.at(x as f64, y as f64);
+                if let Some(b) = self.sample(x as f64 + nu, y as f64 + nv) {
+                    let p = y * w + x;
+                    out[p] = (self.a[p] as f64 - b).abs() as f32;
+                }
+            }
+        }
+        out
+    }
+
     /// Frame 2 at (x, y), bilinear; `None` outside the frame or for a non-finite position.
     fn sample(&self, x: f64, y: f64) -> Option<f64> {
         let (w, h) = (self.width, self.height);

@@ -65,21 +65,62 @@ pub fn regions_of(
             m.is_finite() && m > threshold && c.is_finite() && d.is_finite()
         })
         .collect();
-    let (u, v) = (stats.u(), stats.v());
+    Ok(regions_in(&moving, stats, min_area))
+}
+
+/// The 8-connected components of `moving` (`[H, W]` of `stats`) with at least `min_area`
+/// pixels, each with its statistics from `stats` and its pixels, largest first.
+pub fn regions_in(moving: &[bool], stats: &Flow, min_area: usize) -> Vec<(Region, Vec<usize>)> {
+    let mut out: Vec<(Region, Vec<usize>)> = components(moving, stats.width(), stats.height())
+        .into_iter()
+        .filter(|m| m.len() >= min_area.max(1))
+        .map(|m| (Region::of(&m, stats), m))
+        .collect();
+    out.sort_by_key(|r| std::cmp::Reverse(r.0.pixels));
+    out
+}
+
+/// The 8-connected components of the `true` pixels of a `[h, w]` mask, as flat indices.
+pub fn components(mask: &[bool], w: usize, h: usize) -> Vec<Vec<usize>> {
     let mut label = vec![false; h * w];
     let mut out = Vec::new();
-    for start in 0..h * w {
-        if !moving[start] || label[start] {
+    for start in 0..(h * w).min(mask.len()) {
+        if !mask[start] || label[start] {
             continue;
         }
         label[start] = true;
         let mut stack = vec![start];
         let mut members = Vec::new();
-        let (mut sx, mut sy, mut ss, mut cx, mut cy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut su, mut sv) = (0.0, 0.0);
-        let mut bbox = [w, h, 0, 0];
         while let Some(p) = stack.pop() {
             members.push(p);
+            let (x, y) = (p % w, p / w);
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
+                        let q = ny as usize * w + nx as usize;
+                        if mask[q] && !label[q] {
+                            label[q] = true;
+                            stack.push(q);
+                        }
+                    }
+                }
+            }
+        }
+        out.push(members);
+    }
+    out
+}
+
+impl Region {
+    /// The statistics of `pixels` (flat indices into `stats`, none out of range, at least one).
+    pub fn of(pixels: &[usize], stats: &Flow) -> Region {
+        let w = stats.width();
+        let (u, v) = (stats.u(), stats.v());
+        let (mut sx, mut sy, mut ss, mut cx, mut cy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut su, mut sv) = (0.0, 0.0);
+        let mut bbox = [usize::MAX, usize::MAX, 0, 0];
+        for &p in pixels {
             let (x, y) = (p % w, p / w);
             let (fu, fv) = (u[p] as f64, v[p] as f64);
             let m = (fu * fu + fv * fv).sqrt();
@@ -98,38 +139,18 @@ pub fn regions_of(
                 bbox[2].max(x),
                 bbox[3].max(y),
             ];
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                    if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
-                        let q = ny as usize * w + nx as usize;
-                        if moving[q] && !label[q] {
-                            label[q] = true;
-                            stack.push(q);
-                        }
-                    }
-                }
-            }
         }
-        let n = members.len();
-        if n >= min_area.max(1) {
-            let resultant = (cx * cx + cy * cy).sqrt() / n as f64;
-            let nf = n as f64;
-            out.push((
-                Region {
-                    pixels: n,
-                    centroid: (sx / nf, sy / nf),
-                    speed: ss / nf,
-                    direction: (resultant > 1e-9).then(|| cy.atan2(cx)),
-                    bbox,
-                    mean_flow: (su / nf, sv / nf),
-                },
-                members,
-            ));
+        let nf = pixels.len().max(1) as f64;
+        let resultant = (cx * cx + cy * cy).sqrt() / nf;
+        Region {
+            pixels: pixels.len(),
+            centroid: (sx / nf, sy / nf),
+            speed: ss / nf,
+            direction: (resultant > 1e-9).then(|| cy.atan2(cx)),
+            bbox,
+            mean_flow: (su / nf, sv / nf),
         }
     }
-    out.sort_by_key(|r| std::cmp::Reverse(r.0.pixels));
-    Ok(out)
 }
 
 #[cfg(test)]

@@ -121,6 +121,8 @@ pub struct DebugFrame {
     pub frame: usize,
     /// The magnitude threshold used (px/frame, relative to the background).
     pub threshold: f64,
+    /// The change test's level (grey levels in [0, 1]); null when it did not run.
+    pub change_level: Option<f64>,
     /// The background model's flow at the frame centre and its largest magnitude at a corner.
     pub background_centre: [f64; 2],
     pub background_max: f64,
@@ -297,6 +299,7 @@ pub fn track_sequence(
             debug.push(DebugFrame {
                 frame,
                 threshold: found.threshold,
+                change_level: found.change_level,
                 background_centre: [bc.0, bc.1],
                 background_max: found.background.max_magnitude(s.1, s.0),
                 regions: found
