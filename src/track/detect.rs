@@ -93,7 +93,7 @@ impl DetectConfig {
                 format!("must be finite and >= 0, got {}", self.min_change),
             ));
         }
-        if self.change_window % 2 == 0 || self.change_window > 101 {
+        if self.change_window.is_multiple_of(2) || self.change_window > 101 {
             return Err(Error::invalid(
                 "detect.change_window",
                 format!("must be odd and at most 101, got {}", self.change_window),
