@@ -21,6 +21,12 @@ const FRAMES: usize = 24;
 
 /// Renders a 160×120 clip: one disc crossing the frame at about 5 px per frame.
 fn render(dir: &Path, seed: u64) -> Truth {
+    render_line(dir, seed, [0.12, 0.55], [0.88, 0.4])
+}
+
+/// Renders a 160×120 clip of one disc of radius 10 on a line between two points (fractions of
+/// the frame).
+fn render_line(dir: &Path, seed: u64, from: [f64; 2], to: [f64; 2]) -> Truth {
     let cfg = SequenceConfig {
         scene: TrajectoryConfig {
             width: 160,
@@ -30,8 +36,8 @@ fn render(dir: &Path, seed: u64) -> Truth {
             objects: vec![ObjectSpec {
                 path: PathKind::Line,
                 radius: 10.0,
-                from: [0.12, 0.55],
-                to: [0.88, 0.4],
+                from,
+                to,
                 ..ObjectSpec::default()
             }],
             ..TrajectoryConfig::default()
@@ -254,24 +260,7 @@ fn a_slow_mover_under_the_flow_jitter_is_tracked_with_the_change_test() {
         let d = tempfile::tempdir().unwrap();
         let clip = d.path().join("clip");
         // About 2.1 px per frame: under the jitter's noise floor.
-        let cfg = SequenceConfig {
-            scene: TrajectoryConfig {
-                width: 160,
-                height: 120,
-                frames: FRAMES,
-                seed,
-                objects: vec![ObjectSpec {
-                    path: PathKind::Line,
-                    radius: 10.0,
-                    from: [0.3, 0.5],
-                    to: [0.6, 0.45],
-                    ..ObjectSpec::default()
-                }],
-                ..TrajectoryConfig::default()
-            },
-            ..SequenceConfig::default()
-        };
-        let truth = render_sequence(&cfg, &clip).unwrap();
+        let truth = render_line(&clip, seed, [0.3, 0.5], [0.6, 0.45]);
         let dir = clip.join("jittery");
         for n in 0..FRAMES - 1 {
             let exact =

@@ -1,5 +1,6 @@
 //! The camera model (Notes S4–S5, Eqs. S1–S4): a pipeline of stages built from a config.
 
+pub mod box_filter;
 pub mod config;
 pub mod convolve;
 pub mod fft2;

@@ -7,7 +7,9 @@
 //! whose flow is under the frame's flow-jitter floor still passes it.
 
 use super::background::GlobalMotion;
+use super::noise_floor::robust_floor;
 use super::photometric::GreyPair;
+use crate::imaging::box_filter::box_mean;
 
 /// Which pixels changed between the two frames, and the level used.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,18 +32,10 @@ pub fn change_mask(
     let (w, h) = (pair.width, pair.height);
     let r = window / 2;
     let (averaged, counts) = box_mean(&pair.difference(null), w, h, r);
-    let mut known: Vec<f32> = averaged.iter().copied().filter(|v| v.is_finite()).collect();
-    let (level, med) = if known.is_empty() {
-        (f64::INFINITY, 0.0)
-    } else {
-        let med = median(&mut known);
-        let mut dev: Vec<f32> = known.iter().map(|v| (v - med).abs()).collect();
-        let mad = median(&mut dev);
-        (
-            (med as f64 + k * 1.4826 * mad as f64).max(min_level),
-            med as f64,
-        )
-    };
+    let (med, level) = robust_floor(averaged.clone(), k)
+        .map_or((0.0, f64::INFINITY), |(med, floor)| {
+            (med, floor.max(min_level))
+        });
     // A box clipped by the border averages fewer pixels and spreads more: its deviation from
     // the median is scaled by √(n / n_full) before the comparison.
     let full = ((2 * r + 1) * (2 * r + 1)) as f64;
@@ -57,100 +51,11 @@ pub fn change_mask(
     }
 }
 
-/// The mean of the known (finite) values in the `(2r + 1)²` box around each pixel of a
-/// `[h, w]` plane, the box clipped at the border, and how many values it averaged; NaN where
-/// the box holds no known value. Summed-area tables in f64, so the cost does not depend on
-/// `r`.
-fn box_mean(p: &[f32], w: usize, h: usize, r: usize) -> (Vec<f32>, Vec<u32>) {
-    let stride = w + 1;
-    let mut sum = vec![0.0f64; (h + 1) * stride];
-    let mut count = vec![0u32; (h + 1) * stride];
-    for y in 0..h {
-        for x in 0..w {
-            let v = p[y * w + x];
-            let (s, c) = if v.is_finite() {
-                (v as f64, 1)
-            } else {
-                (0.0, 0)
-            };
-            let i = (y + 1) * stride + x + 1;
-            sum[i] = s + sum[i - 1] + sum[i - stride] - sum[i - stride - 1];
-            count[i] = c + count[i - 1] + count[i - stride] - count[i - stride - 1];
-        }
-    }
-    let mut out = vec![f32::NAN; w * h];
-    let mut counts = vec![0u32; w * h];
-    for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
-        for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let at = |yy: usize, xx: usize| yy * stride + xx;
-            let n = count[at(y1, x1)] + count[at(y0, x0)] - count[at(y0, x1)] - count[at(y1, x0)];
-            counts[y * w + x] = n;
-            if n > 0 {
-                let s = sum[at(y1, x1)] + sum[at(y0, x0)] - sum[at(y0, x1)] - sum[at(y1, x0)];
-                out[y * w + x] = (s / n as f64) as f32;
-            }
-        }
-    }
-    (out, counts)
-}
-
-/// The pixels within `r` (a square neighbourhood) of a `true` pixel of a `[h, w]` mask.
-pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    let ones: Vec<f32> = mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect();
-    box_mean(&ones, w, h, r)
-        .0
-        .iter()
-        .map(|&v| v > 0.0)
-        .collect()
-}
-
-/// The median of a non-empty slice (reordered).
-fn median(v: &mut [f32]) -> f32 {
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::types::Image;
     use rand_distr::{Distribution, StandardNormal};
-
-    #[test]
-    fn box_mean_matches_a_direct_sum_and_skips_unknown_values() {
-        let (w, h) = (7, 5);
-        let mut p: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32).collect();
-        p[8] = f32::NAN;
-        let (got, counts) = box_mean(&p, w, h, 2);
-        for y in 0..h {
-            for x in 0..w {
-                let (mut s, mut n) = (0.0, 0);
-                for yy in y.saturating_sub(2)..(y + 3).min(h) {
-                    for xx in x.saturating_sub(2)..(x + 3).min(w) {
-                        if p[yy * w + xx].is_finite() {
-                            s += p[yy * w + xx] as f64;
-                            n += 1;
-                        }
-                    }
-                }
-                assert!(
-                    (got[y * w + x] as f64 - s / n as f64).abs() < 1e-5,
-                    "({x}, {y})"
-                );
-                assert_eq!(counts[y * w + x], n, "({x}, {y})");
-            }
-        }
-        assert!(
-            box_mean(&[f32::NAN; 4], 2, 2, 1)
-                .0
-                .iter()
-                .all(|v| v.is_nan())
-        );
-        let d = dilate(&[false, false, false, true, false, false], 6, 1, 1);
-        assert_eq!(d, [false, false, true, true, true, false]);
-    }
 
     /// Noisy still frames with a textured 12×12 square moved 3 px right in frame 2 (the
     /// change reaches the box radius, 3 px, beyond the square's two positions).

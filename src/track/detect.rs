@@ -10,12 +10,13 @@
 use serde::{Deserialize, Serialize};
 
 use super::background::{BackgroundModel, GlobalMotion, fit};
-use super::change::{change_mask, dilate};
+use super::change::change_mask;
 use super::grow::{grow, seed_motion};
+use super::noise_floor::noise_floor;
 use super::photometric::GreyPair;
 use super::roi::{Region, regions_in, regions_of};
-use super::run::noise_floor;
 use crate::error::{Error, Result};
+use crate::imaging::box_filter::dilate;
 use crate::types::Flow;
 
 /// Detection settings beyond the magnitude threshold.

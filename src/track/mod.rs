@@ -12,6 +12,7 @@ pub mod hungarian;
 pub mod kalman;
 pub mod mtp;
 pub mod multi;
+pub mod noise_floor;
 pub mod photometric;
 pub mod points;
 pub mod predict;

@@ -9,6 +9,7 @@ use super::layout::ArrayLayout;
 use super::polyfit::{Poly2, terms};
 use super::render::{nominal_sensor_position, sensor_to_tile};
 use crate::error::{Error, Result};
+use crate::imaging::box_filter::box_mean;
 use crate::types::Image;
 
 /// One lens's fitted map and its accuracy.
@@ -65,29 +66,6 @@ fn grey(raw: &Image) -> Vec<f32> {
     out
 }
 
-/// Mean over the (2r+1)² window around each pixel (clipped at the borders), by an integral image.
-fn box_mean(g: &[f32], h: usize, w: usize, r: usize) -> Vec<f32> {
-    let mut ii = vec![0.0f64; (h + 1) * (w + 1)];
-    for y in 0..h {
-        let mut row = 0.0;
-        for x in 0..w {
-            row += g[y * w + x] as f64;
-            ii[(y + 1) * (w + 1) + x + 1] = ii[y * (w + 1) + x + 1] + row;
-        }
-    }
-    let mut out = vec![0.0f32; h * w];
-    for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
-        for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let s = ii[y1 * (w + 1) + x1] - ii[y0 * (w + 1) + x1] - ii[y1 * (w + 1) + x0]
-                + ii[y0 * (w + 1) + x0];
-            out[y * w + x] = (s / ((y1 - y0) * (x1 - x0)) as f64) as f32;
-        }
-    }
-    out
-}
-
 /// Finds the dark dots of each lens's sub-image: pixels darker than their 31×31 neighbourhood
 /// by a fifth of the sub-image's contrast (background: 90th percentile, dots: 1st), grouped into
 /// 8-connected components, centroids weighted by darkness.
@@ -106,7 +84,7 @@ pub fn detect_dots(layout: &ArrayLayout, raw: &Image) -> Result<Vec<Dot>> {
             sensor_to_tile(layout, (i % w) as f64, (i / w) as f64).map_or(-1, |(l, _, _)| l as i16)
         })
         .collect();
-    let local = box_mean(&g, h, w, 15);
+    let local = box_mean(&g, w, h, 15).0;
     let mut dots = Vec::new();
     for lens in 0..layout.lenses.len() {
         let mut vals: Vec<f32> = (0..h * w)
