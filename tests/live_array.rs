@@ -1,7 +1,8 @@
 //! End to end through the 3-lens array (Notes S1, S3): a moving wide scene rendered to the
 //! sensor by `pins array render`, served as the ESP32 would serve it, stitched with the
 //! calibration from `pins array calibrate`, flowed by MMS and tracked, gives the same tracks
-//! live (`pins live --url … --calib`) as from its recording (`pins live --replay`), and the
+//! live (`pins live --url … --calib`) as from its recording (`pins live --replay`) and as
+//! `pins track --frames` on the recorded frames stitched by `pins array stitch`, and the
 //! track follows the object's true centre in the wide image.
 
 mod live_server;
@@ -179,6 +180,62 @@ fn array_frames_are_stitched_flowed_and_tracked_live_as_from_the_recording() {
         "tracked in {seen} of {} frames, centre within {worst:.2} px",
         a.len()
     );
+    // The recorded frames stitched to files and tracked by `pins track --frames` (when the
+    // live run processed every frame, so that both see the same pairs).
+    let frames = rec.join("frames");
+    let recorded = std::fs::read_dir(&frames).unwrap().count();
+    if recorded != a.len() + 1 {
+        eprintln!(
+            "SKIPPED the pins track comparison: {recorded} frames, {} flows",
+            a.len()
+        );
+        return;
+    }
+    let (stitched, tracked) = (dir.path().join("stitched"), dir.path().join("tracked"));
+    pins(&[
+        "array",
+        "stitch",
+        "--calib",
+        s(&calib),
+        "--in",
+        s(&frames),
+        "--out",
+        s(&stitched),
+    ]);
+    pins(&[
+        "track",
+        "--iters",
+        "4",
+        "--confirm",
+        "2",
+        "--frames",
+        s(&stitched),
+        "--out",
+        s(&tracked),
+        "--no-plots",
+    ]);
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tracked.join("tracks.json")).unwrap())
+            .unwrap();
+    let mut diff = 0.0f64;
+    for line in &a {
+        let frame = line[0].as_u64().unwrap();
+        for o in line[3].as_array().unwrap() {
+            let rec = t["objects"][0]["frames"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|r| r["frame"].as_u64() == Some(frame))
+                .unwrap_or_else(|| panic!("frame {frame} missing from pins track: {t}"));
+            for k in 0..2 {
+                let d = o["centroid"][k].as_f64().unwrap() - rec["centroid"][k].as_f64().unwrap();
+                diff = diff.max(d.abs());
+            }
+        }
+    }
+    eprintln!("pins track on the stitched files: centres within {diff:.3} px of live");
+    // The stitched files are 8-bit PNGs where the live pipeline keeps floats.
+    assert!(diff < 0.25, "pins track and live differ by {diff} px");
     assert!(
         seen >= a.len() - 3,
         "tracked in {seen} of {} frames",

@@ -180,11 +180,10 @@ pub(crate) fn array(c: ArrayCommand) -> Result<()> {
                 .with_context(|| format!("calibration {}", calib.display()))?;
             let stitcher = Stitcher::new(&calib)?;
             let jobs: Vec<(PathBuf, PathBuf)> = if input.is_dir() {
-                let mut v: Vec<PathBuf> = std::fs::read_dir(&input)?
-                    .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| p.is_file())
-                    .collect();
-                v.sort();
+                let v = pins::io::image_files(&input)?;
+                if v.is_empty() {
+                    bail!("{}: no image files to stitch", input.display());
+                }
                 v.into_iter()
                     .map(|p| {
                         (

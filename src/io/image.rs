@@ -345,8 +345,9 @@ fn encode_pnm(image: &Image, ext: &str, depth: BitDepth, what: &str) -> Result<V
     Ok(out)
 }
 
-/// The image files of a folder of frames (PNG, JPEG, PPM/PGM, TIFF, EXR), sorted by name.
-pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+/// The image files of a folder (by extension: PNG, JPEG, PPM/PGM, TIFF, EXR), sorted by name;
+/// other files (an index, a log) are left alone.
+pub fn image_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
     let mut v: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -359,6 +360,12 @@ pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
         })
         .collect();
     v.sort();
+    Ok(v)
+}
+
+/// The image files of a folder of frames (PNG, JPEG, PPM/PGM, TIFF, EXR), sorted by name.
+pub fn frame_files(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let v = image_files(dir)?;
     if v.len() < 2 {
         return Err(Error::invalid(
             "frames",
