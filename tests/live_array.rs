@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 
-use live_server::{esp32_head, esp32_part, server};
+use live_server::{esp32_head, esp32_part, server, track_lines};
 
 const FRAMES: usize = 8;
 
@@ -90,18 +90,6 @@ fn camera_frames(dir: &Path) -> (Vec<Vec<u8>>, std::path::PathBuf, Vec<[f64; 2]>
     (jpegs, calib, centres)
 }
 
-/// Frame, time stamp and objects of each line of a `tracks.jsonl`.
-fn tracks(path: &Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).unwrap();
-            serde_json::json!([v["frame"], v["seq"], v["timestamp_s"], v["objects"]])
-        })
-        .collect()
-}
-
 #[test]
 fn array_frames_are_stitched_flowed_and_tracked_live_as_from_the_recording() {
     let dir = tempfile::tempdir().unwrap();
@@ -151,8 +139,8 @@ fn array_frames_are_stitched_flowed_and_tracked_live_as_from_the_recording() {
     args.extend([s(&calib), "--replay", s(&rec), "--out", s(&replay)]);
     pins(&args);
     let (a, b) = (
-        tracks(&live.join("tracks.jsonl")),
-        tracks(&replay.join("tracks.jsonl")),
+        track_lines(&live.join("tracks.jsonl")),
+        track_lines(&replay.join("tracks.jsonl")),
     );
     // A frame the pipeline was too busy for is dropped live and skipped in the replay too.
     assert!(a.len() >= FRAMES / 2, "too few processed frames: {a:?}");

@@ -9,7 +9,7 @@ use std::net::TcpStream;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use live_server::{esp32_head, esp32_part, jpeg, server};
+use live_server::{esp32_head, esp32_part, jpeg, server, track_lines};
 
 const FRAMES: usize = 10;
 
@@ -34,18 +34,6 @@ fn camera(pause: Duration) -> (String, std::thread::JoinHandle<()>) {
         }
         std::thread::sleep(Duration::from_secs(2));
     })
-}
-
-/// The comparable part of each line: frame, seq, time stamp and objects.
-fn tracks(path: &std::path::Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).unwrap();
-            serde_json::json!([v["frame"], v["seq"], v["timestamp_s"], v["objects"]])
-        })
-        .collect()
 }
 
 fn pins() -> Command {
@@ -89,8 +77,8 @@ fn live_and_replay_give_the_same_tracks() {
         .unwrap();
     assert!(st.success());
     let (a, b) = (
-        tracks(&live_out.join("tracks.jsonl")),
-        tracks(&replay_out.join("tracks.jsonl")),
+        track_lines(&live_out.join("tracks.jsonl")),
+        track_lines(&replay_out.join("tracks.jsonl")),
     );
     assert!(!a.is_empty());
     assert_eq!(a, b, "live and replay differ");

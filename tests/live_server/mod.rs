@@ -123,3 +123,15 @@ pub fn esp32_part_declared(
     chunk(s, b"\r\n")?;
     s.flush()
 }
+
+/// The comparable part of each line of a `tracks.jsonl`: frame, seq, time stamp and objects.
+pub fn track_lines(path: &std::path::Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            serde_json::json!([v["frame"], v["seq"], v["timestamp_s"], v["objects"]])
+        })
+        .collect()
+}
