@@ -14,7 +14,7 @@ use super::change::change_mask;
 use super::grow::{grow, seed_motion};
 use super::noise_floor::noise_floor;
 use super::photometric::GreyPair;
-use super::roi::{Region, regions_in, regions_of};
+use super::roi::{Region, components, regions_of};
 use crate::error::{Error, Result};
 use crate::imaging::box_filter::dilate;
 use crate::types::Flow;
@@ -305,9 +305,14 @@ fn grown_regions(
                 && stats.v()[p].is_finite()
         })
         .collect();
-    let mut out: Vec<(Region, Vec<usize>)> = regions_in(&seeds_mask, stats, min_area)
+    let mut seeds_found: Vec<Vec<usize>> = components(&seeds_mask, w, h)
         .into_iter()
-        .filter_map(|(_, seed)| {
+        .filter(|px| px.len() >= min_area.max(1))
+        .collect();
+    seeds_found.sort_by_key(|px| std::cmp::Reverse(px.len()));
+    let mut out: Vec<(Region, Vec<usize>)> = seeds_found
+        .into_iter()
+        .filter_map(|seed| {
             let m = seed_motion(&seed, stats, seeds.background, seeds.pair, 32)?;
             Some(grow(
                 &seed,

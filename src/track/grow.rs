@@ -11,9 +11,10 @@ use super::photometric::GreyPair;
 use crate::types::Flow;
 
 /// The grown region of `seed` (flat indices into `rel`, the flow relative to the
-/// background, `[H, W]`): every pixel passes |f| > `threshold` and the midpoint rule, is not
-/// yet `claimed` by an earlier region, is `allowed` (near a changed pixel), and connects to a seed pixel that passes too. The
-/// pixels taken are marked in `claimed`. Empty when no seed pixel passes.
+/// background, `[H, W]`) with the seed's `motion`: every pixel passes |f| > `threshold` and
+/// |f − motion| < |motion|/2, is `allowed` (near a changed pixel), is not yet `claimed` by an
+/// earlier region, and connects to a seed pixel that passes too. The pixels taken are marked
+/// in `claimed`. Empty when no seed pixel passes.
 #[allow(clippy::too_many_arguments)]
 pub fn grow(
     seed: &[usize],
@@ -25,6 +26,9 @@ pub fn grow(
     claimed: &mut [bool],
 ) -> Vec<usize> {
     let (w, h) = (rel.width(), rel.height());
+    if seed.is_empty() || w == 0 || h == 0 {
+        return Vec::new();
+    }
     let (u, v) = (rel.u(), rel.v());
     let (mu, mv) = motion;
     let mm = mu * mu + mv * mv;

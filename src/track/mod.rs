@@ -4,6 +4,7 @@
 
 pub mod background;
 pub mod change;
+pub mod consistency;
 pub mod detect;
 pub mod eval;
 pub mod experiment;

@@ -70,7 +70,7 @@ pub fn regions_of(
 
 /// The 8-connected components of `moving` (`[H, W]` of `stats`) with at least `min_area`
 /// pixels, each with its statistics from `stats` and its pixels, largest first.
-pub fn regions_in(moving: &[bool], stats: &Flow, min_area: usize) -> Vec<(Region, Vec<usize>)> {
+fn regions_in(moving: &[bool], stats: &Flow, min_area: usize) -> Vec<(Region, Vec<usize>)> {
     let mut out: Vec<(Region, Vec<usize>)> = components(moving, stats.width(), stats.height())
         .into_iter()
         .filter(|m| m.len() >= min_area.max(1))
