@@ -24,6 +24,9 @@ pub(crate) struct BenchFlowArgs {
     iters: usize,
     #[arg(long, default_value_t = 3)]
     reps: usize,
+    /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
+    #[arg(long, default_value = "cpu")]
+    device: String,
 }
 
 #[derive(clap::Args)]
@@ -48,7 +51,7 @@ pub(crate) struct BenchRealArgs {
     /// Python interpreter for the OpenCV peers (scripts/flow_baselines.py, built in).
     #[arg(long, default_value = "python3")]
     python: String,
-    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
 }
@@ -68,7 +71,7 @@ pub(crate) struct DetectLimitsArgs {
     /// Iteration counts; override the config's.
     #[arg(long, value_delimiter = ',')]
     iters: Option<Vec<usize>>,
-    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
 }
@@ -90,10 +93,10 @@ pub(crate) struct TrainArgs {
     /// Continue the run in --out from its last checkpoint.
     #[arg(long)]
     resume: bool,
-    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// Data-parallel training over several devices, e.g. `cpu,cpu` or `cuda:0,cuda:1`: each
+    /// Data-parallel training over several devices, e.g. `cpu,cpu`, `wgpu:0,wgpu:1` or `cuda:0,cuda:1`: each
     /// step's batch is split among them and the gradients summed on the first; the result does
     /// not depend on the number of devices. Replaces --device.
     #[arg(long, value_delimiter = ',', conflicts_with = "device")]
@@ -143,7 +146,7 @@ pub(crate) struct InferArgs {
     /// Refinement iterations (the model's default when absent).
     #[arg(long)]
     iters: Option<usize>,
-    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
 }
@@ -165,7 +168,7 @@ pub(crate) struct EvalArgs {
     /// Peer results to draw on the same plot (JSON from scripts/flow_baselines.py).
     #[arg(long)]
     peers: Option<PathBuf>,
-    /// Device: cpu, or cuda[:N] in a build with `--features cuda`.
+    /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
 }
@@ -327,7 +330,10 @@ pub(crate) fn bench_flow(a: BenchFlowArgs) -> Result<()> {
     if a.reps == 0 || a.iters == 0 {
         bail!("--reps and --iters must be positive");
     }
-    let row = pins::report::flow_bench::run(&a.model, &a.mode, a.height, a.width, a.iters, a.reps)?;
+    let device = pins::flow::device::select(&a.device)?;
+    let row = pins::report::flow_bench::run(
+        &a.model, &a.mode, a.height, a.width, a.iters, a.reps, &device,
+    )?;
     println!("{}", serde_json::to_string(&row)?);
     Ok(())
 }

@@ -39,6 +39,9 @@ pub(crate) struct LiveArgs {
     /// MMS weights (`default` = the shipped mms-small).
     #[arg(long, default_value = "default")]
     weights: String,
+    /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// MMS refinement iterations (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
@@ -120,7 +123,8 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
         signal_hook::flag::register(sig, stop.clone()).context("installing the Ctrl-C handler")?;
     }
     let track = track_options(&a)?;
-    let predictor = pins::flow::infer::Predictor::load(&a.weights)?;
+    let predictor =
+        pins::flow::infer::Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
     let iters = a.iters.unwrap_or(predictor.config.iters);
     let stitcher = match &a.calib {
         Some(p) => {

@@ -41,6 +41,9 @@ struct RunArgs {
     /// MMS weights for --frames (`default` = the shipped mms-small).
     #[arg(long, default_value = "default")]
     weights: String,
+    /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// MMS refinement iterations for --frames (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
@@ -255,7 +258,10 @@ fn run(a: RunArgs) -> Result<()> {
                 bail!("--scale must be in (0, 1], got {}", a.scale);
             }
             let files = io::frame_files(dir)?;
-            let predictor = pins::flow::infer::Predictor::load(&a.weights)?;
+            let predictor = pins::flow::infer::Predictor::load_on(
+                &a.weights,
+                pins::flow::device::select(&a.device)?,
+            )?;
             let iters = a.iters.unwrap_or(predictor.config.iters);
             let mut flow_ms = 0.0;
             let mut prev: Option<GreyFrame> = None;

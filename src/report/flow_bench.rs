@@ -41,7 +41,8 @@ pub fn peak_rss_mb() -> f64 {
         .unwrap_or(0.0)
 }
 
-/// Runs one measurement: `mode` is `infer` (batch 1) or `train` (batch 2, AdamW step).
+/// Runs one measurement on `device`: `mode` is `infer` (batch 1) or `train` (batch 2, AdamW
+/// step).
 pub fn run(
     model: &str,
     mode: &str,
@@ -49,6 +50,7 @@ pub fn run(
     width: usize,
     iters: usize,
     reps: usize,
+    device: &Device,
 ) -> Result<FlowBenchRow> {
     let cfg = MmsConfig::named(model)?;
     if !height.is_multiple_of(8)
@@ -66,7 +68,7 @@ pub fn run(
     }
     let (ms, batch, params) = match mode {
         "infer" => {
-            let device = Device::flex();
+            let device = device.clone();
             let net = Mms::new(&cfg, &device);
             let a = Tensor::<4>::random([1, 3, height, width], Distribution::Default, &device);
             let b = Tensor::<4>::random([1, 3, height, width], Distribution::Default, &device);
@@ -78,7 +80,7 @@ pub fn run(
             (ms, 1, parameter_count(&net))
         }
         "train" => {
-            let device = Device::flex().autodiff();
+            let device = device.clone().autodiff();
             let mut net = Mms::new(&cfg, &device);
             let params = parameter_count(&net);
             let mut optim = AdamWConfig::new().init();

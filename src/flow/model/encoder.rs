@@ -5,21 +5,45 @@
 use burn::nn::conv::Conv2d;
 use burn::prelude::*;
 use burn::tensor::activation::relu;
-use burn::tensor::module::{adaptive_avg_pool2d, interpolate};
-use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
+use burn::tensor::module::adaptive_avg_pool2d;
 
 use super::blocks::{Norm, ResidualBlock, conv};
 use super::config::NormKind;
 use crate::flow::ops::{Act, conv_layer};
 
-/// Bilinear resize to `[h, w]` with PyTorch's `align_corners = false` (burn's default is true).
+/// Bilinear resize to `[h, w]` with PyTorch's `align_corners = false`, written as two matrix
+/// products, `Ry · X · Rxᵀ`: the same values as Burn's `interpolate` (tested below), but with a
+/// backward pass on every backend (cubecl's bilinear `interpolate` has none, so the GPU backends
+/// could not train through the pyramid pooling).
+///
+/// # Shapes
+/// `[B, C, m, n]` → `[B, C, h, w]`
 pub fn resize(x: Tensor<4>, h: usize, w: usize) -> Tensor<4> {
-    interpolate(
-        x,
-        InterpolateOptions::new(InterpolateMode::Bilinear)
-            .with_align_corners(false)
-            .with_output_size([h, w]),
-    )
+    let [_, _, m, n] = x.dims();
+    let device = x.device();
+    let ry = Tensor::<2>::from_data(TensorData::new(resize_weights(m, h), [h, m]), &device);
+    let rxt =
+        Tensor::<2>::from_data(TensorData::new(resize_weights(n, w), [w, n]), &device).transpose();
+    let ry = ry.unsqueeze::<4>(); // [1, 1, h, m]
+    let rxt = rxt.unsqueeze::<4>(); // [1, 1, n, w]
+    ry.matmul(x).matmul(rxt) // [B, C, h, m] → [B, C, h, w]
+}
+
+/// The `[out, len]` row-major matrix of 1-D linear interpolation from `len` samples to `out`
+/// with `align_corners = false`: output `i` reads source position `(i + ½)·len/out − ½`,
+/// clamped at 0, between its two neighbours (the last sample repeats past the end).
+fn resize_weights(len: usize, out: usize) -> Vec<f32> {
+    let mut r = vec![0.0f32; out * len];
+    let scale = len as f64 / out as f64;
+    for i in 0..out {
+        let src = ((i as f64 + 0.5) * scale - 0.5).max(0.0);
+        let i0 = (src.floor() as usize).min(len - 1);
+        let i1 = (i0 + 1).min(len - 1);
+        let t = (src - i0 as f64) as f32;
+        r[i * len + i0] += 1.0 - t;
+        r[i * len + i1] += t;
+    }
+    r
 }
 
 /// Pyramid pooling (Eq. S13): P0 = X, P_m = Upsample(AvgPool(X; m×m)) for m = 1, 2, 3,
@@ -156,5 +180,64 @@ impl Dsmsce {
             x = b.forward(x); // → [B, d3, H/8, W/8]
         }
         self.daspp.forward(self.pyramid.forward(x))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use burn::tensor::Distribution;
+    use burn::tensor::module::interpolate;
+    use burn::tensor::ops::{InterpolateMode, InterpolateOptions};
+
+    use super::*;
+
+    #[test]
+    fn resize_by_matrix_products_is_burns_bilinear_interpolation() {
+        let device = Device::flex();
+        // The pooled sizes of the pyramid (1, 2, 3) up to odd and even map sizes, an
+        // up-and-down mixture, and a plain downscale.
+        for (m, n, h, w) in [
+            (1, 1, 6, 7),
+            (2, 2, 48, 64),
+            (3, 3, 47, 61),
+            (3, 5, 4, 9),
+            (9, 8, 4, 3),
+        ] {
+            let x = Tensor::<4>::random([2, 3, m, n], Distribution::Normal(0.0, 1.0), &device);
+            let want = interpolate(
+                x.clone(),
+                InterpolateOptions::new(InterpolateMode::Bilinear)
+                    .with_align_corners(false)
+                    .with_output_size([h, w]),
+            );
+            let got = resize(x, h, w);
+            assert_eq!(got.dims(), [2, 3, h, w]);
+            let diff = (got - want).abs().max().into_scalar::<f32>();
+            assert!(diff < 1e-5, "{m}x{n} → {h}x{w}: max difference {diff}");
+        }
+    }
+
+    #[test]
+    fn resize_weights_rows_sum_to_one_and_keep_a_constant() {
+        for (len, out) in [(1, 5), (2, 7), (3, 48), (7, 3)] {
+            let r = resize_weights(len, out);
+            for row in r.chunks(len) {
+                let s: f32 = row.iter().sum();
+                assert!((s - 1.0).abs() < 1e-6, "{len} → {out}: row sums to {s}");
+                assert!(row.iter().all(|&v| v >= 0.0));
+            }
+        }
+    }
+
+    #[test]
+    fn resize_has_a_gradient() {
+        let device = Device::flex().autodiff();
+        let x = Tensor::<4>::ones([1, 1, 2, 2], &device).require_grad();
+        let y = resize(x.clone(), 5, 3).sum();
+        let grads = y.backward();
+        let g = x.grad(&grads).expect("a gradient for the input");
+        // Each output pixel's weights sum to one, so the input gradients sum to 5·3.
+        let total = g.sum().into_scalar::<f32>();
+        assert!((total - 15.0).abs() < 1e-4, "{total}");
     }
 }
