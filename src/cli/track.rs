@@ -63,6 +63,13 @@ struct RunArgs {
     /// Polynomial order n.
     #[arg(long, default_value_t = 2)]
     order: usize,
+    /// Kalman measurement noise of a region's centroid (px²); the default suits the flow
+    /// source (see `pins track --help` of --change-test).
+    #[arg(long)]
+    position_r: Option<f64>,
+    /// Kalman measurement noise of a region's speed and direction.
+    #[arg(long)]
+    motion_r: Option<f64>,
     /// Prediction horizons in frames.
     #[arg(long, value_delimiter = ',', default_value = "1,15,30")]
     horizons: Vec<usize>,
@@ -93,6 +100,10 @@ struct RunArgs {
     /// many robust standard deviations.
     #[arg(long, default_value_t = 4.0)]
     change_k: f64,
+    /// Change test: do not trim from each grown region the pixels that the background's
+    /// motion explains better than the region's (the halo of an estimated flow).
+    #[arg(long)]
+    no_trim: bool,
     /// Photometric test: a region passes when its warp residual with its own flow is at most
     /// this fraction of the residual with the background's motion.
     #[arg(long, default_value_t = 0.8)]
@@ -106,6 +117,10 @@ struct RunArgs {
     /// right within 2 px + 30 %.
     #[arg(long, default_value_t = 1.0)]
     consistency_max_ratio: f64,
+    /// A matched region smaller than this fraction of its track's median area is a fragment
+    /// of the object: the track stays alive but coasts (0 turns this off).
+    #[arg(long, default_value_t = 0.35)]
+    partial_area_ratio: f64,
     /// Write every frame's regions, their verdicts and reasons to DIR/regions.jsonl.
     #[arg(long)]
     debug: Option<PathBuf>,
@@ -205,10 +220,13 @@ fn run(a: RunArgs) -> Result<()> {
             },
             window: a.window,
             order: a.order,
+            position_r: a.position_r.unwrap_or(MtpConfig::default().position_r),
+            motion_r: a.motion_r.unwrap_or(MtpConfig::default().motion_r),
             ..MtpConfig::default()
         },
         confirm: a.confirm,
         consistency_max_ratio: a.consistency_max_ratio,
+        partial_area_ratio: a.partial_area_ratio,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;
@@ -229,6 +247,7 @@ fn run(a: RunArgs) -> Result<()> {
             ChangeTest::Off => Some(false),
         },
         change_k: a.change_k,
+        trim: !a.no_trim,
         ..DetectConfig::default()
     };
     detect.validate()?;

@@ -15,6 +15,7 @@ use super::grow::{grow, seed_motion};
 use super::noise_floor::noise_floor;
 use super::photometric::GreyPair;
 use super::roi::{Region, components, regions_of};
+use super::trim::trim;
 use crate::error::{Error, Result};
 use crate::imaging::box_filter::dilate;
 use crate::types::Flow;
@@ -52,6 +53,10 @@ pub struct DetectConfig {
     /// ... and only through pixels within this distance of a changed pixel, so it does not
     /// annex the spurious flow of the still background around it.
     pub grow_reach: usize,
+    /// With the change test: each grown region loses the pixels whose 5×5 neighbourhood the
+    /// background's motion explains better than the region's motion, by more than the change
+    /// test's level (the halo an estimated flow leaves around a mover; `track::trim`).
+    pub trim: bool,
 }
 
 impl Default for DetectConfig {
@@ -67,6 +72,7 @@ impl Default for DetectConfig {
             change_k: 4.0,
             grow_margin: 24,
             grow_reach: 10,
+            trim: true,
         }
     }
 }
@@ -201,6 +207,7 @@ pub fn detect(
         Some((pair, c)) => {
             let seeds = Seeds {
                 changed: &c.mask,
+                level: c.level,
                 background: &background,
                 pair,
             };
@@ -267,6 +274,8 @@ pub fn detect(
 /// motion and the frames.
 struct Seeds<'a> {
     changed: &'a [bool],
+    /// The change test's level (grey levels in [0, 1]).
+    level: f64,
     background: &'a GlobalMotion,
     pair: &'a GreyPair,
 }
@@ -314,7 +323,7 @@ fn grown_regions(
         .into_iter()
         .filter_map(|seed| {
             let m = seed_motion(&seed, stats, seeds.background, seeds.pair, 32)?;
-            Some(grow(
+            let grown = grow(
                 &seed,
                 m,
                 test,
@@ -322,7 +331,12 @@ fn grown_regions(
                 cfg.grow_margin,
                 &allowed,
                 &mut claimed,
-            ))
+            );
+            Some(if cfg.trim {
+                trim(&grown, m, seeds.background, seeds.pair, 2, seeds.level)
+            } else {
+                grown
+            })
         })
         .filter(|px| px.len() >= min_area.max(1))
         .map(|px| (Region::of(&px, stats), px))

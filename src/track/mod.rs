@@ -20,3 +20,4 @@ pub mod predict;
 pub mod roi;
 pub mod run;
 pub mod static_flow;
+pub mod trim;

@@ -51,6 +51,12 @@ pub struct TrackerConfig {
     /// centre: a second region on the same object (a fragment of a poorly estimated flow) is
     /// not a second object.
     pub birth_exclusion_px: f64,
+    /// A matched detection smaller than this fraction of the track's median area over its
+    /// last `area_window` observations is a fragment of the object (part of it moves in an
+    /// estimated flow): it keeps the track alive, but its centre, which can lie anywhere on
+    /// the object, does not move the track, which coasts through that frame. 0 turns it off.
+    pub partial_area_ratio: f64,
+    pub area_window: usize,
 }
 
 impl Default for TrackerConfig {
@@ -67,6 +73,8 @@ impl Default for TrackerConfig {
             velocity_gate_px: 2.0,
             velocity_gate_rel: 0.5,
             birth_exclusion_px: 30.0,
+            partial_area_ratio: 0.35,
+            area_window: 15,
         }
     }
 }
@@ -78,6 +86,16 @@ pub struct TrackEstimate {
     pub estimate: Estimate,
     /// True when a detection was matched this frame (false while coasting).
     pub observed: bool,
+}
+
+/// The median of `values`; `None` when there are none.
+fn median(values: &VecDeque<usize>) -> Option<f64> {
+    let mut v: Vec<usize> = values.iter().copied().collect();
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    Some(*v.select_nth_unstable(mid).1 as f64)
 }
 
 /// A tentative track's hit: the region's centre and its mean flow.
@@ -98,6 +116,8 @@ struct Track {
     predicted: (f64, f64),
     /// The filtered centre in the last frame.
     centre: (f64, f64),
+    /// The areas (pixels) of the last `area_window` whole detections.
+    areas: VecDeque<usize>,
 }
 
 /// What became of one detection in the last frame (for the debug output).
@@ -108,7 +128,9 @@ pub struct Assignment {
     /// The reported ID, when the track is confirmed.
     pub id: Option<usize>,
     /// `new`, `tentative`, `confirmed` (this frame), `tracked`, `merged` (shared by several
-    /// tracks, which coast), or `fragment` (unmatched, beside a confirmed track: no new track).
+    /// tracks, which coast), `partial` (matched, but too small a part of the object to move
+    /// the track, which coasts), or `fragment` (unmatched, beside a confirmed track: no new
+    /// track).
     pub state: &'static str,
 }
 
@@ -138,6 +160,12 @@ impl Tracker {
             return Err(Error::invalid(
                 "tracker",
                 "gate must be finite and > 0, confirm >= 1",
+            ));
+        }
+        if !(0.0..1.0).contains(&config.partial_area_ratio) {
+            return Err(Error::invalid(
+                "tracker.partial_area_ratio",
+                format!("must be in [0, 1), got {}", config.partial_area_ratio),
             ));
         }
         if config.consistency_max_ratio.is_nan() || config.consistency_max_ratio < 1.0 {
@@ -256,7 +284,17 @@ impl Tracker {
                         .iter()
                         .zip(&shared)
                         .any(|(d, &s)| s && covers(d, t.predicted)));
-            let e = t.mtp.step(frame, det, horizon)?;
+            let partial = det.is_some_and(|d| {
+                median(&t.areas)
+                    .is_some_and(|a| (d.pixels as f64) < self.config.partial_area_ratio * a)
+            });
+            let e = t.mtp.step(frame, det.filter(|_| !partial), horizon)?;
+            if let Some(d) = det.filter(|_| !partial) {
+                t.areas.push_back(d.pixels);
+                while t.areas.len() > self.config.area_window.max(1) {
+                    t.areas.pop_front();
+                }
+            }
             let was_confirmed = t.confirmed;
             if let Some(d) = det {
                 t.hits += 1;
@@ -302,6 +340,8 @@ impl Tracker {
                     id: t.confirmed.then_some(t.id),
                     state: if shared[j] {
                         "merged"
+                    } else if partial {
+                        "partial"
                     } else if t.confirmed && !was_confirmed {
                         "confirmed"
                     } else if t.confirmed {
@@ -351,6 +391,7 @@ impl Tracker {
                 confirmed: false,
                 predicted: e.path[0],
                 centre: e.centroid,
+                areas: VecDeque::from([d.pixels]),
             };
             self.next_key += 1;
             // With a window of one frame there is nothing to compare: confirmed at once.
@@ -455,8 +496,55 @@ mod tests {
                 consistency_max_ratio: 0.5,
                 ..TrackerConfig::default()
             },
+            TrackerConfig {
+                partial_area_ratio: 1.5,
+                ..TrackerConfig::default()
+            },
         ] {
             assert!(Tracker::new(c).is_err());
         }
+    }
+
+    #[test]
+    fn a_fragment_of_the_object_keeps_the_track_alive_without_moving_it() {
+        // An object of 400 px moving 3 px/frame along y = 50; every 4th frame from 10 on only
+        // a 40 px fragment of it is found, 12 px off its centre (part of it moved in an
+        // estimated flow).
+        let run = |ratio: f64| {
+            let mut tr = Tracker::new(TrackerConfig {
+                partial_area_ratio: ratio,
+                ..TrackerConfig::default()
+            })
+            .unwrap();
+            let mut worst = 0.0f64;
+            let mut states = Vec::new();
+            for n in 0..30 {
+                let x = 10.0 + 3.0 * n as f64;
+                let mut d = det(x, 50.0, 3.0, 0.0);
+                d.pixels = 400;
+                if n >= 10 && n % 4 == 0 {
+                    d = det(x + 4.0, 62.0, 3.0, 0.0);
+                }
+                let out = tr.step(n, &[d], 3).unwrap();
+                states.push(tr.assignments[0].as_ref().map(|a| a.state));
+                if n >= 10 {
+                    assert_eq!(out.len(), 1, "frame {n}: the track lives on");
+                    let c = out[0].estimate.centroid;
+                    worst = worst.max((c.0 - x).hypot(c.1 - 50.0));
+                }
+            }
+            (worst, states)
+        };
+        let (coasting, states) = run(0.35);
+        let (following, _) = run(0.0);
+        assert!(states.contains(&Some("partial")), "{states:?}");
+        assert!(
+            coasting < 1.0,
+            "the track strays {coasting} px from the object"
+        );
+        assert!(
+            following > 3.0,
+            "without the rule the fragment pulls it {following} px"
+        );
     }
 }

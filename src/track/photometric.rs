@@ -108,6 +108,18 @@ impl GreyPair {
         (n > 0).then(|| s / n as f64)
     }
 
+    /// |frame 1 − frame 2 at the pixel moved by `shift`| at pixel `p` (a flat index); `None`
+    /// outside the frame.
+    pub fn residual_at(&self, p: usize, shift: (f64, f64)) -> Option<f64> {
+        let w = self.width;
+        if p >= w * self.height {
+            return None;
+        }
+        let (x, y) = ((p % w) as f64, (p / w) as f64);
+        self.sample(x + shift.0, y + shift.1)
+            .map(|b| (self.a[p] as f64 - b).abs())
+    }
+
     /// |frame 1 − frame 2 warped by `null`| at every pixel (`[H, W]`, grey levels in [0, 1]):
     /// the temporal difference with the background's motion compensated; NaN where the
     /// warped sample falls outside the frame.
