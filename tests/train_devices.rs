@@ -4,7 +4,7 @@
 //! refused.
 
 mod common;
-use common::{failed, ok, pins, tiny_dataset};
+use common::{failed, log_column, ok, pins, safetensors_f32, tiny_dataset};
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -21,42 +21,6 @@ fn config(dir: &Path, batch: usize, steps: usize) -> PathBuf {
     )
     .unwrap();
     p
-}
-
-/// Every f32 tensor of a safetensors file, by name.
-fn tensors(path: &Path) -> Vec<(String, Vec<f32>)> {
-    let bytes = fs::read(path).unwrap();
-    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + n]).unwrap();
-    let data = &bytes[8 + n..];
-    let mut out: Vec<(String, Vec<f32>)> = header
-        .as_object()
-        .unwrap()
-        .iter()
-        .filter(|(k, v)| *k != "__metadata__" && v["dtype"] == "F32")
-        .map(|(k, v)| {
-            let (a, b) = (
-                v["data_offsets"][0].as_u64().unwrap() as usize,
-                v["data_offsets"][1].as_u64().unwrap() as usize,
-            );
-            let vals = data[a..b]
-                .chunks_exact(4)
-                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-                .collect();
-            (k.clone(), vals)
-        })
-        .collect();
-    out.sort_by(|a, b| a.0.cmp(&b.0));
-    out
-}
-
-fn log_column(run: &Path, col: usize) -> Vec<f64> {
-    fs::read_to_string(run.join("log.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
-        .collect()
 }
 
 fn s(p: &Path) -> &str {
@@ -97,8 +61,8 @@ fn two_devices_with_half_the_batch_equal_one_with_all_of_it() {
         assert!(close(&a, &b, 1e-6), "column {col}: {a:?} against {b:?}");
     }
     let (wa, wb) = (
-        tensors(&one.join("last.safetensors")),
-        tensors(&two.join("last.safetensors")),
+        safetensors_f32(&one.join("last.safetensors")),
+        safetensors_f32(&two.join("last.safetensors")),
     );
     assert_eq!(wa.len(), wb.len());
     assert!(!wa.is_empty());

@@ -6,7 +6,7 @@
 #![cfg(feature = "wgpu")]
 
 mod common;
-use common::{ok, pins, tiny_dataset};
+use common::{log_column, ok, pins, safetensors_f32, tiny_dataset};
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -83,42 +83,6 @@ fn inference_matches_the_cpu() {
     );
 }
 
-/// Every f32 tensor of a safetensors file, by name.
-fn tensors(path: &Path) -> Vec<(String, Vec<f32>)> {
-    let bytes = fs::read(path).unwrap();
-    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + n]).unwrap();
-    let data = &bytes[8 + n..];
-    let mut out: Vec<(String, Vec<f32>)> = header
-        .as_object()
-        .unwrap()
-        .iter()
-        .filter(|(k, v)| *k != "__metadata__" && v["dtype"] == "F32")
-        .map(|(k, v)| {
-            let (a, b) = (
-                v["data_offsets"][0].as_u64().unwrap() as usize,
-                v["data_offsets"][1].as_u64().unwrap() as usize,
-            );
-            let vals = data[a..b]
-                .chunks_exact(4)
-                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-                .collect();
-            (k.clone(), vals)
-        })
-        .collect();
-    out.sort_by(|a, b| a.0.cmp(&b.0));
-    out
-}
-
-fn log_column(run: &Path, col: usize) -> Vec<f64> {
-    fs::read_to_string(run.join("log.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
-        .collect()
-}
-
 #[test]
 fn two_training_steps_match_the_cpu() {
     let Some(gpu) = gpu() else { return };
@@ -170,8 +134,8 @@ fn two_training_steps_match_the_cpu() {
         }
     }
     let (wa, wb) = (
-        tensors(&cpu.join("last.safetensors")),
-        tensors(&gpu_run.join("last.safetensors")),
+        safetensors_f32(&cpu.join("last.safetensors")),
+        safetensors_f32(&gpu_run.join("last.safetensors")),
     );
     assert_eq!(wa.len(), wb.len());
     let mut worst = (0.0f32, String::new());

@@ -8,6 +8,7 @@
 
 use super::background::GlobalMotion;
 use super::photometric::GreyPair;
+use super::roi::padded_bbox;
 use crate::types::Flow;
 
 /// The grown region of `seed` (flat indices into `rel`, the flow relative to the
@@ -26,9 +27,6 @@ pub fn grow(
     claimed: &mut [bool],
 ) -> Vec<usize> {
     let (w, h) = (rel.width(), rel.height());
-    if seed.is_empty() || w == 0 || h == 0 {
-        return Vec::new();
-    }
     let (u, v) = (rel.u(), rel.v());
     let (mu, mv) = motion;
     let mm = mu * mu + mv * mv;
@@ -42,13 +40,9 @@ pub fn grow(
             && !claimed[p]
     };
     let pad = mm.sqrt().ceil() as usize + margin;
-    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-    for &p in seed {
-        let (x, y) = (p % w, p / w);
-        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-    }
-    let (x0, y0) = (x0.saturating_sub(pad), y0.saturating_sub(pad));
-    let (x1, y1) = ((x1 + pad).min(w - 1), (y1 + pad).min(h - 1));
+    let Some([x0, y0, x1, y1]) = padded_bbox(seed, w, h, pad) else {
+        return Vec::new();
+    };
     let mut stack: Vec<usize> = seed
         .iter()
         .copied()

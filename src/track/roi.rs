@@ -112,6 +112,26 @@ pub fn components(mask: &[bool], w: usize, h: usize) -> Vec<Vec<usize>> {
     out
 }
 
+/// The box `[x0, y0, x1, y1]` (inclusive) around `pixels` (flat indices into rows `w` wide),
+/// widened by `pad` on every side and clipped to the `w × h` frame; `None` without pixels or
+/// for an empty frame.
+pub fn padded_bbox(pixels: &[usize], w: usize, h: usize, pad: usize) -> Option<[usize; 4]> {
+    if pixels.is_empty() || w == 0 || h == 0 {
+        return None;
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for &p in pixels {
+        let (x, y) = (p % w, p / w);
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    Some([
+        x0.saturating_sub(pad),
+        y0.saturating_sub(pad),
+        (x1 + pad).min(w - 1),
+        (y1 + pad).min(h - 1),
+    ])
+}
+
 impl Region {
     /// The statistics of `pixels` (flat indices into `stats`, none out of range, at least one).
     pub fn of(pixels: &[usize], stats: &Flow) -> Region {

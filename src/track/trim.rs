@@ -8,6 +8,7 @@
 
 use super::background::GlobalMotion;
 use super::photometric::GreyPair;
+use super::roi::padded_bbox;
 use crate::imaging::box_filter::box_mean;
 
 /// The pixels of `region` (flat indices, sorted or not) that the region's `motion`
@@ -24,17 +25,10 @@ pub fn trim(
     margin: f64,
 ) -> Vec<usize> {
     let (w, h) = (pair.width, pair.height);
-    if region.is_empty() || w == 0 || h == 0 {
-        return region.to_vec();
-    }
     // The residual planes over the region's box, padded by the filter's radius.
-    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-    for &p in region {
-        let (x, y) = (p % w, p / w);
-        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-    }
-    let (x0, y0) = (x0.saturating_sub(radius), y0.saturating_sub(radius));
-    let (x1, y1) = ((x1 + radius).min(w - 1), (y1 + radius).min(h - 1));
+    let Some([x0, y0, x1, y1]) = padded_bbox(region, w, h, radius) else {
+        return region.to_vec();
+    };
     let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
     let mut still = vec![f32::NAN; bw * bh]; // [bh, bw]: the background's motion
     let mut moved = vec![f32::NAN; bw * bh]; // [bh, bw]: the background's plus the region's
