@@ -146,6 +146,9 @@ pub(crate) struct InferArgs {
     /// Refinement iterations (the model's default when absent).
     #[arg(long)]
     iters: Option<usize>,
+    /// What follows the network: variational (coarse-to-fine variational refinement) or none.
+    #[arg(long, default_value = "variational")]
+    refine: String,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -278,7 +281,9 @@ pub(crate) fn infer(a: InferArgs) -> Result<()> {
             ),
             _ => bail!("give either --img1 and --img2, or --frames DIR"),
         };
-    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
+    let refine = pins::flow::refine::Refine::parse(&a.refine)?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
+        .with_refine(&refine);
     let iters = a.iters.unwrap_or(predictor.config.iters);
     for pair in pair_flows(&predictor, frames.as_slice(), iters) {
         let pair = pair?;

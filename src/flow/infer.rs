@@ -7,6 +7,7 @@ use burn::prelude::*;
 
 use super::data::image_tensor;
 use super::model::{InputPadder, Mms, MmsConfig};
+use super::refine::{Refine, RefineConfig, refine};
 use super::weights;
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
@@ -15,11 +16,13 @@ use crate::types::{Flow, Image};
 /// README for the commands), used when no `--weights` file is given.
 pub const DEFAULT_WEIGHTS: &[u8] = include_bytes!("../../datasets/weights/mms-small.safetensors");
 
-/// A loaded network ready to run.
+/// A loaded network ready to run, and the refinement its flow gets (variational by default:
+/// see [`super::refine`]).
 pub struct Predictor {
     pub model: Mms,
     pub config: MmsConfig,
     pub device: Device,
+    pub refine: Option<RefineConfig>,
 }
 
 impl Predictor {
@@ -43,12 +46,33 @@ impl Predictor {
             model,
             config,
             device,
+            refine: Refine::default().config(),
         })
     }
 
-    /// The flow from `img1` to `img2` after `iters` refinements.
+    /// The same predictor with the refinement `refine`.
+    pub fn with_refine(mut self, refine: &Refine) -> Self {
+        self.refine = refine.config();
+        self
+    }
+
+    /// The flow from `img1` to `img2` after `iters` network iterations and the refinement.
     pub fn predict(&self, img1: &Image, img2: &Image, iters: usize) -> Result<Flow> {
+        let flow = self.predict_network(img1, img2, iters)?;
+        self.refined(img1, img2, flow)
+    }
+
+    /// The network's own flow, without the refinement.
+    pub fn predict_network(&self, img1: &Image, img2: &Image, iters: usize) -> Result<Flow> {
         predict_flow(&self.model, &self.config, img1, img2, iters, &self.device)
+    }
+
+    /// `flow` after this predictor's refinement (itself when there is none).
+    pub fn refined(&self, img1: &Image, img2: &Image, flow: Flow) -> Result<Flow> {
+        match &self.refine {
+            Some(cfg) => refine(img1, img2, &flow, cfg),
+            None => Ok(flow),
+        }
     }
 }
 

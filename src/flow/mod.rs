@@ -11,6 +11,7 @@ pub mod loss;
 pub mod metrics;
 pub mod model;
 pub mod ops;
+pub mod refine;
 pub mod scale;
 pub mod sequence;
 pub mod train;
