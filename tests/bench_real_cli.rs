@@ -65,13 +65,19 @@ fn mean_gt(path: &Path) -> (u64, f64) {
     (n, sum / n.max(1) as f64)
 }
 
-/// Every run has the MMS rows, the peers (when they ran) and the zero flow, over the set and
-/// each pair, with finite numbers in range; the zero flow is the mean |gt| of the flow files.
+/// Every run has the MMS rows (the network's, then the refined flow's), the peers (when they
+/// ran) and the zero flow, over the set and each pair, with finite numbers in range; the zero
+/// flow is the mean |gt| of the flow files.
 fn check_runs(r: &Value, sets: &[&str], cameras: &[&str], iters: &[u64]) {
     let runs = r["runs"].as_array().unwrap();
     assert_eq!(runs.len(), sets.len() * cameras.len());
     let peers = r["peers"]["ran"].as_bool().unwrap();
     let mut expected: Vec<String> = iters.iter().map(|n| format!("mms-small, {n} it")).collect();
+    expected.extend(
+        iters
+            .iter()
+            .map(|n| format!("mms-small + variational, {n} it")),
+    );
     if peers {
         for m in [
             "OpenCV DIS medium",

@@ -207,6 +207,7 @@ fn sequence_runner_gives_every_consecutive_pair() {
         model: Mms::new(&cfg, &dev),
         config: cfg.clone(),
         device: dev.clone(),
+        refine: None,
     };
     let frames: Vec<Image> = (0..4)
         .map(|n| textured(40, 48, (n as f32, -0.5 * n as f32)))

@@ -48,6 +48,10 @@ pub(crate) struct BenchRealArgs {
     /// Do not run the OpenCV peers.
     #[arg(long)]
     no_peers: bool,
+    /// Also score MMS followed by the variational refinement (`variational`) or only the
+    /// network (`none`).
+    #[arg(long, default_value = "variational")]
+    refine: String,
     /// Python interpreter for the OpenCV peers (scripts/flow_baselines.py, built in).
     #[arg(long, default_value = "python3")]
     python: String,
@@ -71,6 +75,9 @@ pub(crate) struct DetectLimitsArgs {
     /// Iteration counts; override the config's.
     #[arg(long, value_delimiter = ',')]
     iters: Option<Vec<usize>>,
+    /// What follows MMS: variational (coarse-to-fine variational refinement) or none.
+    #[arg(long, default_value = "variational")]
+    refine: String,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -171,6 +178,10 @@ pub(crate) struct EvalArgs {
     /// Peer results to draw on the same plot (JSON from scripts/flow_baselines.py).
     #[arg(long)]
     peers: Option<PathBuf>,
+    /// Also score the network's flow after the variational refinement (`variational`, rows
+    /// marked "+ variational"), or only the network (`none`).
+    #[arg(long, default_value = "variational")]
+    refine: String,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -312,14 +323,10 @@ pub(crate) fn eval(a: EvalArgs) -> Result<()> {
     }
     let data = FlowDataset::open(&a.data)?;
     data.check_has_known_flow()?;
-    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
-    let report = evaluate(
-        &predictor.model,
-        &predictor.config,
-        &data,
-        &a.iters,
-        &predictor.device,
-    )?;
+    let refine = pins::flow::refine::Refine::parse(&a.refine)?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
+        .with_refine(&refine);
+    let report = evaluate(&predictor, &data, &a.iters)?;
     print!("{}", report.markdown());
     if let Some(out) = &a.out {
         let text = serde_json::to_string_pretty(&report)?;
@@ -351,6 +358,7 @@ pub(crate) fn bench_real(a: BenchRealArgs) -> Result<()> {
         peers: !a.no_peers,
         python: a.python.clone(),
         device: pins::flow::device::select(&a.device)?,
+        refine: pins::flow::refine::Refine::parse(&a.refine)?,
     };
     let started = std::time::Instant::now();
     let report = run(&a.config, &a.out, &opts, &|line| eprintln!("{line}"))?;
@@ -387,13 +395,14 @@ pub(crate) fn detect_limits(a: DetectLimitsArgs) -> Result<()> {
         cfg.iters = iters.clone();
     }
     cfg.validate()?;
-    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
+    let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
+        .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?);
     let runs = limits::run(&cfg, &predictor)?;
     let scores: Vec<_> = runs.iter().flat_map(|r| r.scores.clone()).collect();
     let table = limits::markdown(&scores, &cfg);
     print!("{table}");
     std::fs::create_dir_all(&a.out)?;
-    let json = serde_json::json!({"config": cfg, "weights": a.weights, "scores": scores});
+    let json = serde_json::json!({"config": cfg, "weights": a.weights, "refine": a.refine, "scores": scores});
     io::write_bytes_atomic(
         &a.out.join("report.json"),
         serde_json::to_string_pretty(&json)?.as_bytes(),

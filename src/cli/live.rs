@@ -45,6 +45,9 @@ pub(crate) struct LiveArgs {
     /// MMS refinement iterations (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
+    /// What follows MMS: variational (coarse-to-fine variational refinement) or none.
+    #[arg(long, default_value = "variational")]
+    refine: String,
     /// Downscale factor in (0, 1] applied (after stitching) before the flow.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
@@ -124,7 +127,8 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
     }
     let track = track_options(&a)?;
     let predictor =
-        pins::flow::infer::Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?;
+        pins::flow::infer::Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
+            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?);
     let iters = a.iters.unwrap_or(predictor.config.iters);
     let stitcher = match &a.calib {
         Some(p) => {

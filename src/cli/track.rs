@@ -47,6 +47,9 @@ struct RunArgs {
     /// MMS refinement iterations for --frames (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
+    /// What follows MMS: variational (coarse-to-fine variational refinement) or none.
+    #[arg(long, default_value = "variational")]
+    refine: String,
     /// With --frames: run MMS at this fraction of the frame size, in (0, 1] (faster; the flow
     /// is resampled to the full frame, so tracks stay in its pixels).
     #[arg(long, default_value_t = 1.0)]
@@ -280,7 +283,8 @@ fn run(a: RunArgs) -> Result<()> {
             let predictor = pins::flow::infer::Predictor::load_on(
                 &a.weights,
                 pins::flow::device::select(&a.device)?,
-            )?;
+            )?
+            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?);
             let iters = a.iters.unwrap_or(predictor.config.iters);
             let mut flow_ms = 0.0;
             let mut prev: Option<GreyFrame> = None;

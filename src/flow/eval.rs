@@ -7,22 +7,34 @@ use burn::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::data::FlowDataset;
-use super::infer::predict_flow;
+use super::infer::{Predictor, predict_flow};
 use super::metrics::{FlowErrorSums, FlowScores};
 use super::model::{Mms, MmsConfig};
 use crate::error::{Error, Result};
 use crate::types::Flow;
 
-/// One row of the report.
+/// One row of the report: the network at `iters` iterations, alone or followed by the
+/// variational refinement (`refined`; its time includes the network's).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct EvalRow {
     pub iters: usize,
+    #[serde(default)]
+    pub refined: bool,
     pub epe: f64,
     pub ae_deg: f64,
     pub px1: f64,
     pub px3: f64,
     pub px5: f64,
     pub ms_per_pair: f64,
+}
+
+/// The method name of an MMS row: the model's name, with " + variational" for refined rows.
+pub fn mms_method(model: &str, refined: bool) -> String {
+    if refined {
+        format!("{model} + variational")
+    } else {
+        model.into()
+    }
 }
 
 /// The zero-flow baseline.
@@ -47,6 +59,9 @@ pub struct PairEval {
     pub mean_gt: f64,
     pub rows: Vec<EvalRow>,
     pub zero_flow: ZeroFlow,
+    /// The refined rows while they are collected; moved to the end of `rows`.
+    #[serde(skip)]
+    refined_rows: Vec<EvalRow>,
 }
 
 /// `report.json`.
@@ -78,9 +93,10 @@ impl From<FlowScores> for ZeroFlow {
 
 impl EvalRow {
     /// The row of `iters` iterations with scores `s` and `ms` milliseconds per pair.
-    pub fn of(iters: usize, s: &FlowScores, ms: f64) -> Self {
+    pub fn of(iters: usize, refined: bool, s: &FlowScores, ms: f64) -> Self {
         EvalRow {
             iters,
+            refined,
             epe: s.epe,
             ae_deg: s.ae_deg,
             px1: s.px1,
@@ -109,15 +125,12 @@ pub fn evaluate_dataset(
     Ok(sums.scores())
 }
 
-/// Evaluates `model` on every pair of `data` for each count in `iters`, timing each pair;
-/// the report holds the dataset's scores (means over all known pixels) and each pair's.
-pub fn evaluate(
-    model: &Mms,
-    config: &MmsConfig,
-    data: &FlowDataset,
-    iters: &[usize],
-    device: &Device,
-) -> Result<EvalReport> {
+/// Evaluates the predictor's network on every pair of `data` for each count in `iters`, and,
+/// when the predictor has a refinement, the refined flow too (rows after the network's),
+/// timing each pair; the report holds the dataset's scores (means over all known pixels) and
+/// each pair's.
+pub fn evaluate(predictor: &Predictor, data: &FlowDataset, iters: &[usize]) -> Result<EvalReport> {
+    let (model, config, device) = (&predictor.model, &predictor.config, &predictor.device);
     if iters.is_empty() {
         return Err(Error::invalid("--iters", "empty list"));
     }
@@ -158,12 +171,14 @@ pub fn evaluate(
             mean_gt: z.epe,
             rows: Vec::new(),
             zero_flow: (*z).into(),
+            refined_rows: Vec::new(),
         })
         .collect();
     let mut rows = Vec::new();
+    let mut refined_rows = Vec::new();
     for &n in iters {
-        let mut sums = FlowErrorSums::default();
-        let mut seconds = 0.0;
+        let (mut sums, mut refined_sums) = (FlowErrorSums::default(), FlowErrorSums::default());
+        let (mut seconds, mut refined_seconds) = (0.0, 0.0);
         for ((a, b, gt), pair) in pairs.iter().zip(per_pair.iter_mut()) {
             let t = Instant::now();
             let pred = predict_flow(model, config, a, b, n, device)?;
@@ -172,13 +187,35 @@ pub fn evaluate(
             let mut one = FlowErrorSums::default();
             one.add(&pred, gt, None)?;
             sums.merge(&one);
-            pair.rows.push(EvalRow::of(n, &one.scores(), 1e3 * dt));
+            pair.rows
+                .push(EvalRow::of(n, false, &one.scores(), 1e3 * dt));
+            if predictor.refine.is_some() {
+                let t = Instant::now();
+                let fine = predictor.refined(a, b, pred)?;
+                let dt = dt + t.elapsed().as_secs_f64();
+                refined_seconds += dt;
+                let mut one = FlowErrorSums::default();
+                one.add(&fine, gt, None)?;
+                refined_sums.merge(&one);
+                pair.refined_rows
+                    .push(EvalRow::of(n, true, &one.scores(), 1e3 * dt));
+            }
         }
-        rows.push(EvalRow::of(
-            n,
-            &sums.scores(),
-            1e3 * seconds / pairs.len() as f64,
-        ));
+        let k = 1e3 / pairs.len() as f64;
+        rows.push(EvalRow::of(n, false, &sums.scores(), k * seconds));
+        if predictor.refine.is_some() {
+            refined_rows.push(EvalRow::of(
+                n,
+                true,
+                &refined_sums.scores(),
+                k * refined_seconds,
+            ));
+        }
+    }
+    rows.append(&mut refined_rows);
+    for pair in &mut per_pair {
+        let mut r = std::mem::take(&mut pair.refined_rows);
+        pair.rows.append(&mut r);
     }
     let z = zero.scores();
     Ok(EvalReport {
@@ -201,8 +238,9 @@ impl EvalReport {
             self.model, self.parameters, self.pairs, self.data
         );
         for r in &self.rows {
+            let refined = if r.refined { " + variational" } else { "" };
             s += &format!(
-                "| {} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.0} |\n",
+                "| {}{refined} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.0} |\n",
                 r.iters, r.epe, r.ae_deg, r.px1, r.px3, r.px5, r.ms_per_pair
             );
         }

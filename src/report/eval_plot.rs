@@ -30,25 +30,31 @@ pub fn read_peers(path: &Path) -> Result<Vec<PeerRow>> {
 
 /// Writes the EPE-against-time PNG.
 pub fn write(report: &EvalReport, peers: Option<&Path>, png: &Path) -> Result<()> {
-    let mut series = vec![Series {
-        name: format!(
-            "{} (iterations {})",
-            report.model,
-            report
-                .rows
-                .iter()
-                .map(|r| r.iters.to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(),
-        markers: false,
-    }];
-    series.push(Series {
-        name: format!("{} points", report.model),
-        points: report.rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect(),
-        markers: true,
-    });
+    // One line for the network alone and one for the refined flow, through the iteration counts.
+    let mut series = Vec::new();
+    for refined in [false, true] {
+        let rows: Vec<_> = report
+            .rows
+            .iter()
+            .filter(|r| r.refined == refined)
+            .collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let name = crate::flow::eval::mms_method(&report.model, refined);
+        let points: Vec<(f64, f64)> = rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect();
+        let iters: Vec<String> = rows.iter().map(|r| r.iters.to_string()).collect();
+        series.push(Series {
+            name: format!("{name} (iterations {})", iters.join(", ")),
+            points: points.clone(),
+            markers: false,
+        });
+        series.push(Series {
+            name: format!("{name} points"),
+            points,
+            markers: true,
+        });
+    }
     if let Some(p) = peers {
         for peer in read_peers(p)? {
             series.push(Series {

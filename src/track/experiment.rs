@@ -67,6 +67,9 @@ pub struct ExperimentConfig {
     pub weights: String,
     #[serde(default = "default_iters")]
     pub iters: usize,
+    /// What follows MMS: `"variational"` (the default) or `"none"`.
+    #[serde(default = "default_refine")]
+    pub refine: String,
     /// Detection: flow magnitude threshold (px/frame) and smallest region (px).
     #[serde(default = "default_threshold")]
     pub threshold: f64,
@@ -96,6 +99,9 @@ fn default_weights() -> String {
 }
 fn default_iters() -> usize {
     12
+}
+fn default_refine() -> String {
+    "variational".into()
 }
 fn default_threshold() -> f64 {
     0.5
@@ -140,6 +146,15 @@ impl ExperimentConfig {
                 "needs at least one clip and one predictor",
             ));
         }
+        crate::flow::refine::Refine::parse(&self.refine).map_err(|_| {
+            Error::invalid(
+                "refine",
+                format!(
+                    "expected \"none\" or \"variational\", got {:?}",
+                    self.refine
+                ),
+            )
+        })?;
         if self.horizons.is_empty() || self.horizons.iter().any(|&h| h == 0 || h > 10_000) {
             return Err(Error::invalid("horizons", "need horizons in 1..=10000"));
         }
@@ -307,7 +322,10 @@ pub fn run(
 ) -> Result<ExperimentReport> {
     cfg.validate()?;
     let predictor = match cfg.flow {
-        FlowSource::Mms => Some(Predictor::load(&cfg.weights)?),
+        FlowSource::Mms => Some(
+            Predictor::load(&cfg.weights)?
+                .with_refine(&crate::flow::refine::Refine::parse(&cfg.refine)?),
+        ),
         FlowSource::Truth => None,
     };
     let mut rows = Vec::new();

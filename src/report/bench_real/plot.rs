@@ -21,27 +21,36 @@ pub fn write(r: &BenchRealReport, dir: &Path) -> Result<Vec<PathBuf>> {
         if rows.is_empty() {
             continue;
         }
-        let mms: Vec<(f64, f64)> = rows
-            .iter()
-            .filter(|m| m.iters.is_some())
-            .map(|m| (m.ms_per_pair, m.epe))
-            .collect();
-        let iters: Vec<String> = rows
-            .iter()
-            .filter_map(|m| m.iters.map(|n| n.to_string()))
-            .collect();
-        let mut series = vec![
-            Series {
-                name: format!("{} (iterations {})", r.model, iters.join(", ")),
-                points: mms.clone(),
+        // One line per MMS method (the network alone, and refined), through its iteration
+        // counts.
+        let mut methods: Vec<&str> = Vec::new();
+        for m in rows.iter().filter(|m| m.iters.is_some()) {
+            if !methods.contains(&m.method.as_str()) {
+                methods.push(&m.method);
+            }
+        }
+        let mut series = Vec::new();
+        for name in methods {
+            let of: Vec<_> = rows
+                .iter()
+                .filter(|m| m.iters.is_some() && m.method == name)
+                .collect();
+            let points: Vec<(f64, f64)> = of.iter().map(|m| (m.ms_per_pair, m.epe)).collect();
+            let iters: Vec<String> = of
+                .iter()
+                .filter_map(|m| m.iters.map(|n| n.to_string()))
+                .collect();
+            series.push(Series {
+                name: format!("{name} (iterations {})", iters.join(", ")),
+                points: points.clone(),
                 markers: false,
-            },
-            Series {
-                name: format!("{} points", r.model),
-                points: mms,
+            });
+            series.push(Series {
+                name: format!("{name} points"),
+                points,
                 markers: true,
-            },
-        ];
+            });
+        }
         for m in rows.iter().filter(|m| m.iters.is_none()) {
             series.push(Series {
                 name: m.method.clone(),

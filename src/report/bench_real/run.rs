@@ -16,7 +16,7 @@ use super::report::{
 use crate::dataset::{Generator, GeneratorConfig, Manifest, Shard};
 use crate::error::{Error, Result};
 use crate::flow::data::FlowDataset;
-use crate::flow::eval::{EvalReport, EvalRow, evaluate};
+use crate::flow::eval::{EvalReport, EvalRow, evaluate, mms_method};
 use crate::flow::infer::Predictor;
 
 /// What the command line may change.
@@ -30,6 +30,8 @@ pub struct BenchOptions {
     /// The Python interpreter for the peers.
     pub python: String,
     pub device: Device,
+    /// Score the refined flow beside the network's.
+    pub refine: crate::flow::refine::Refine,
 }
 
 /// Runs the benchmark of the config at `config_path`, generating data under `out/data`;
@@ -49,7 +51,8 @@ pub fn run(
         config::check_iters(it).map_err(|e| Error::invalid("--iters", e.to_string()))?;
         plan.iters = it.clone();
     }
-    let predictor = Predictor::load_on(&plan.weights, opts.device.clone())?;
+    let predictor =
+        Predictor::load_on(&plan.weights, opts.device.clone())?.with_refine(&opts.refine);
     let mut skipped = Vec::new();
     let mut sets: Vec<&ResolvedSet> = Vec::new();
     for s in &plan.sets {
@@ -185,14 +188,7 @@ fn run_one(
         dir.display(),
         plan.iters
     ));
-    let eval = evaluate(
-        &predictor.model,
-        &predictor.config,
-        &data,
-        &plan.iters,
-        &predictor.device,
-    )
-    .map_err(context)?;
+    let eval = evaluate(predictor, &data, &plan.iters).map_err(context)?;
     let peers = if with_peers {
         log(&format!("set {} ({}): OpenCV peers", set.name, cam.name));
         let json = dir.with_extension("peers.json");
@@ -214,7 +210,7 @@ fn sources(dir: &Path) -> Result<BTreeMap<String, String>> {
 
 fn mms_scores(model: &str, r: &EvalRow) -> MethodScores {
     MethodScores {
-        method: model.into(),
+        method: mms_method(model, r.refined),
         iters: Some(r.iters),
         epe: r.epe,
         ae_deg: r.ae_deg,
