@@ -4,22 +4,12 @@
 //! reported and skipped, and bad input is a clear error with no output.
 
 mod common;
-use common::{failed, ok, pins};
+use common::{failed, ok, pins, shared_data};
 
 use std::fs;
 use std::path::{Path, PathBuf};
 
 use serde_json::Value;
-
-fn shared_data() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("skipping the real sets: ../shared/data not found");
-        None
-    }
-}
 
 /// A generated chairs set that needs no data, a missing set, and the FlyingChairs crops when
 /// `../shared/data` is there.

@@ -2,7 +2,7 @@
 //! shards, resumption, what a scene needs, and bad input (clear error, non-zero exit, no output).
 
 mod common;
-use common::{failed, ok, pins_with_threads as pins};
+use common::{failed, ok, pins_with_threads as pins, shared_data};
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -212,16 +212,6 @@ fn test_patterns_carry_exact_flow() {
     let flow = pins::io::read_flo(&out.join("00000_flow.flo")).unwrap();
     assert_eq!((flow.width(), flow.height()), (701, 701));
     assert_eq!(flow.get(350, 350), (3.0, -3.0));
-}
-
-fn shared_data() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("skipping: ../shared/data not found");
-        None
-    }
 }
 
 #[test]

@@ -104,3 +104,15 @@ pub fn log_column(run: &std::path::Path, col: usize) -> Vec<f64> {
         .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
         .collect()
 }
+
+/// `../shared/data` (real pairs written by others), or `None` with a message when this
+/// checkout has none beside it.
+pub fn shared_data() -> Option<std::path::PathBuf> {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if p.is_dir() {
+        Some(p)
+    } else {
+        eprintln!("skipping: ../shared/data not found");
+        None
+    }
+}
