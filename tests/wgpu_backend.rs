@@ -57,6 +57,9 @@ fn inference_matches_the_cpu() {
             s(&out),
             "--iters",
             "6",
+            // The network's own flow: the refinement after it runs on the CPU either way.
+            "--refine",
+            "none",
             "--device",
             device,
         ]));
