@@ -114,23 +114,35 @@ impl RefineConfig {
     }
 }
 
-/// The choice of `--refine`: the network alone, or followed by the variational refinement.
+/// The choice of `--refine`: the network alone, the variational refinement with its default
+/// settings, or with the settings of a JSON file (the fields of [`RefineConfig`]).
 #[derive(Clone, Debug, PartialEq, Default)]
 pub enum Refine {
     None,
     #[default]
     Variational,
+    Custom(RefineConfig),
 }
 
 impl Refine {
-    /// Parses `none` or `variational`.
+    /// Parses `none`, `variational` or the path of a `.json` file of settings.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "none" => Ok(Refine::None),
             "variational" => Ok(Refine::Variational),
+            _ if s.ends_with(".json") => {
+                let path = std::path::Path::new(s);
+                let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+                let cfg: RefineConfig = serde_json::from_str(&text).map_err(|e| Error::Config {
+                    path: path.into(),
+                    reason: e.to_string(),
+                })?;
+                cfg.validate("refine")?;
+                Ok(Refine::Custom(cfg))
+            }
             _ => Err(Error::invalid(
                 "--refine",
-                format!("expected none or variational, got {s:?}"),
+                format!("expected none, variational or a .json file of settings, got {s:?}"),
             )),
         }
     }
@@ -140,6 +152,7 @@ impl Refine {
         match self {
             Refine::None => None,
             Refine::Variational => Some(RefineConfig::default()),
+            Refine::Custom(c) => Some(c.clone()),
         }
     }
 }
@@ -387,5 +400,31 @@ mod tests {
             assert!(bad.validate("refine").is_err(), "{bad:?}");
         }
         assert!(Refine::parse("variational").is_ok() && Refine::parse("tv-l1").is_err());
+    }
+
+    /// `--refine FILE.json`: the settings it names over the defaults; a bad field, a value out
+    /// of range or a missing file is an error naming it.
+    #[test]
+    fn settings_from_a_json_file() {
+        let d = tempfile::tempdir().unwrap();
+        let good = d.path().join("r.json");
+        std::fs::write(&good, r#"{"scales": [2, 1], "alpha": 10}"#).unwrap();
+        let cfg = Refine::parse(good.to_str().unwrap())
+            .unwrap()
+            .config()
+            .unwrap();
+        assert_eq!((cfg.scales.clone(), cfg.alpha), (vec![2, 1], 10.0));
+        assert_eq!(cfg.delta, RefineConfig::default().delta);
+        for (name, text, says) in [
+            ("unknown.json", r#"{"scale": [1]}"#, "unknown field"),
+            ("range.json", r#"{"omega": 3}"#, "omega"),
+        ] {
+            let p = d.path().join(name);
+            std::fs::write(&p, text).unwrap();
+            let e = Refine::parse(p.to_str().unwrap()).unwrap_err().to_string();
+            assert!(e.contains(says), "{e}");
+        }
+        let e = Refine::parse(d.path().join("none.json").to_str().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("none.json"), "{e}");
     }
 }
