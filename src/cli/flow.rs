@@ -39,7 +39,7 @@ pub(crate) struct BenchRealArgs {
     /// pairs, kept and reused by the next run of the same config).
     #[arg(long)]
     out: PathBuf,
-    /// Weights file, or "default"; overrides the config's.
+    /// Weights file, or built-in weights (default = mms-small-real, mms-small); overrides the config's.
     #[arg(long)]
     weights: Option<String>,
     /// Iteration counts; override the config's.
@@ -69,7 +69,7 @@ pub(crate) struct DetectLimitsArgs {
     /// Output folder: report.json, report.md and fig_s10.png.
     #[arg(long)]
     out: PathBuf,
-    /// Weights file, or "default".
+    /// Weights file, or built-in weights: default (= mms-small-real, stage 5), mms-small (stage 3).
     #[arg(long, default_value = "default")]
     weights: String,
     /// Iteration counts; override the config's.
@@ -132,7 +132,7 @@ pub(crate) struct ExportArgs {
 
 #[derive(clap::Args)]
 pub(crate) struct InferArgs {
-    /// Weights file, or "default" for the shipped mms-small weights.
+    /// Weights file, or built-in weights: default (= mms-small-real, stage 5), mms-small (stage 3).
     #[arg(long, default_value = "default")]
     weights: String,
     /// First image (or, with --frames, omit both images).
@@ -163,7 +163,7 @@ pub(crate) struct InferArgs {
 
 #[derive(clap::Args)]
 pub(crate) struct EvalArgs {
-    /// Weights file, or "default".
+    /// Weights file, or built-in weights: default (= mms-small-real, stage 5), mms-small (stage 3).
     #[arg(long, default_value = "default")]
     weights: String,
     /// Dataset folder with ground-truth flow.

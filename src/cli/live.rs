@@ -36,8 +36,8 @@ pub(crate) struct LiveArgs {
     /// Array calibration (from `pins array calibrate`): frames are stitched to the wide image.
     #[arg(long)]
     calib: Option<PathBuf>,
-    /// MMS weights (`default` = the shipped mms-small).
-    #[arg(long, default_value = "default")]
+    /// MMS weights: a file, or the built-in mms-small (stage 3, the default here), mms-small-real or default (= mms-small-real).
+    #[arg(long, default_value = pins::flow::infer::TRACK_WEIGHTS)]
     weights: String,
     /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
@@ -45,8 +45,10 @@ pub(crate) struct LiveArgs {
     /// MMS refinement iterations (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
-    /// What follows MMS: variational (coarse-to-fine variational refinement) or none.
-    #[arg(long, default_value = "variational")]
+    /// What follows MMS: none, variational (the coarse-to-fine variational refinement) or a
+    /// .json file of its settings. None by default here: on the tracking clips the refinement
+    /// pulls a small, dark mover's flow towards its background (README, tracking).
+    #[arg(long, default_value = "none")]
     refine: String,
     /// Downscale factor in (0, 1] applied (after stitching) before the flow.
     #[arg(long, default_value_t = 1.0)]

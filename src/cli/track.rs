@@ -38,8 +38,8 @@ struct RunArgs {
     /// --flows, read from there); the frames also feed the photometric test.
     #[arg(long)]
     frames: Option<PathBuf>,
-    /// MMS weights for --frames (`default` = the shipped mms-small).
-    #[arg(long, default_value = "default")]
+    /// MMS weights for --frames: a file, or the built-in mms-small (stage 3, the default here), mms-small-real or default (= mms-small-real).
+    #[arg(long, default_value = pins::flow::infer::TRACK_WEIGHTS)]
     weights: String,
     /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
@@ -47,8 +47,10 @@ struct RunArgs {
     /// MMS refinement iterations for --frames (default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
-    /// What follows MMS: variational (coarse-to-fine variational refinement) or none.
-    #[arg(long, default_value = "variational")]
+    /// What follows MMS: none, variational (the coarse-to-fine variational refinement) or a
+    /// .json file of its settings. None by default here: on the tracking clips the refinement
+    /// pulls a small, dark mover's flow towards its background (README, tracking).
+    #[arg(long, default_value = "none")]
     refine: String,
     /// With --frames: run MMS at this fraction of the frame size, in (0, 1] (faster; the flow
     /// is resampled to the full frame, so tracks stay in its pixels).

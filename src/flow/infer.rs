@@ -12,9 +12,35 @@ use super::weights;
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
 
-/// The shipped `mms-small` weights, trained by `pins train` on `pins generate` data (see the
-/// README for the commands), used when no `--weights` file is given.
-pub const DEFAULT_WEIGHTS: &[u8] = include_bytes!("../../datasets/weights/mms-small.safetensors");
+/// The shipped weights, compiled into the binary and named by `--weights NAME` (see the README
+/// for the commands that made them): `mms-small-real` (stage 5: photographic, large-motion,
+/// still- and plain-background data; the best flow on real images, so `default` for the flow
+/// commands) and `mms-small` (stage 3, on the generator's chairs; the tracker's weights, whose
+/// small movers' flow the tracking clips measured better).
+pub const BUILTIN_WEIGHTS: [(&str, &str, &[u8]); 2] = [
+    (
+        "mms-small-real",
+        "datasets/weights/mms-small-real.safetensors",
+        include_bytes!("../../datasets/weights/mms-small-real.safetensors"),
+    ),
+    (
+        "mms-small",
+        "datasets/weights/mms-small.safetensors",
+        include_bytes!("../../datasets/weights/mms-small.safetensors"),
+    ),
+];
+
+/// What `--weights default` names.
+pub const DEFAULT_WEIGHTS: &str = "mms-small-real";
+
+/// The weights the tracker uses by default (`pins track --frames`, `pins live`, track
+/// experiments).
+pub const TRACK_WEIGHTS: &str = "mms-small";
+
+/// Whether `name` is `default` or a built-in weights name rather than a file.
+pub fn is_builtin(name: &str) -> bool {
+    name == "default" || BUILTIN_WEIGHTS.iter().any(|(n, _, _)| *n == name)
+}
 
 /// A loaded network ready to run, and the refinement its flow gets (variational by default:
 /// see [`super::refine`]).
@@ -26,19 +52,22 @@ pub struct Predictor {
 }
 
 impl Predictor {
-    /// Loads a weights file (`default` for the shipped one) onto the CPU.
+    /// Loads a weights file, or built-in weights by name (`default`, `mms-small-real`,
+    /// `mms-small`), onto the CPU.
     pub fn load(path: &str) -> Result<Self> {
         Self::load_on(path, Device::flex())
     }
 
     /// Loads a weights file onto `device`.
     pub fn load_on(path: &str, device: Device) -> Result<Self> {
-        let (model, config) = if path == "default" {
-            weights::from_bytes(
-                DEFAULT_WEIGHTS,
-                Path::new("datasets/weights/mms-small.safetensors"),
-                &device,
-            )?
+        let name = if path == "default" {
+            DEFAULT_WEIGHTS
+        } else {
+            path
+        };
+        let builtin = BUILTIN_WEIGHTS.iter().find(|(n, _, _)| *n == name);
+        let (model, config) = if let Some((_, file, bytes)) = builtin {
+            weights::from_bytes(bytes, Path::new(file), &device)?
         } else {
             weights::load(Path::new(path), &device)?
         };

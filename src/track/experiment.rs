@@ -62,12 +62,12 @@ pub struct ExperimentConfig {
     pub horizons: Vec<usize>,
     #[serde(default = "default_source")]
     pub flow: FlowSource,
-    /// MMS weights for `"flow": "mms"` (`default` = the shipped ones) and iterations.
+    /// MMS weights for `"flow": "mms"` (a file, or built-in: `mms-small`, the default here, `mms-small-real`, `default`) and iterations.
     #[serde(default = "default_weights")]
     pub weights: String,
     #[serde(default = "default_iters")]
     pub iters: usize,
-    /// What follows MMS: `"variational"` (the default) or `"none"`.
+    /// What follows MMS: `"none"` (the default for tracking), `"variational"` or a settings file.
     #[serde(default = "default_refine")]
     pub refine: String,
     /// Detection: flow magnitude threshold (px/frame) and smallest region (px).
@@ -95,13 +95,13 @@ fn default_source() -> FlowSource {
     FlowSource::Truth
 }
 fn default_weights() -> String {
-    "default".into()
+    crate::flow::infer::TRACK_WEIGHTS.into()
 }
 fn default_iters() -> usize {
     12
 }
 fn default_refine() -> String {
-    "variational".into()
+    "none".into()
 }
 fn default_threshold() -> f64 {
     0.5

@@ -142,7 +142,9 @@ impl BenchRealConfig {
             .iter()
             .map(|s| resolve_set(s, base))
             .collect::<Result<_>>()?;
-        let weights = if self.weights == "default" || Path::new(&self.weights).is_absolute() {
+        let weights = if crate::flow::infer::is_builtin(&self.weights)
+            || Path::new(&self.weights).is_absolute()
+        {
             self.weights.clone()
         } else {
             base.join(&self.weights).to_string_lossy().into_owned()
