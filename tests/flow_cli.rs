@@ -240,9 +240,18 @@ fn resume_continues_exactly() {
     assert!(table.contains("zero flow"), "{table}");
     let json: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(json["rows"].as_array().unwrap().len(), 2);
-    for key in ["iters", "epe", "ae_deg", "px1", "px3", "px5", "ms_per_pair"] {
-        assert!(json["rows"][0][key].is_number(), "{key}");
+    // The network at 1 and 3 iterations, then the same refined.
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4);
+    let refined: Vec<bool> = rows
+        .iter()
+        .map(|r| r["refined"].as_bool().unwrap())
+        .collect();
+    assert_eq!(refined, [false, false, true, true]);
+    for row in rows {
+        for key in ["iters", "epe", "ae_deg", "px1", "px3", "px5", "ms_per_pair"] {
+            assert!(row[key].is_number(), "{key}");
+        }
     }
     assert!(json["zero_flow"]["epe"].as_f64().unwrap() > 0.0);
     assert!(report.with_extension("png").is_file());

@@ -208,6 +208,7 @@ fn sequence_runner_gives_every_consecutive_pair() {
         config: cfg.clone(),
         device: dev.clone(),
         refine: None,
+        coarse_start: false,
     };
     let frames: Vec<Image> = (0..4)
         .map(|n| textured(40, 48, (n as f32, -0.5 * n as f32)))

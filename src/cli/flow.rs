@@ -52,6 +52,10 @@ pub(crate) struct BenchRealArgs {
     /// network (`none`).
     #[arg(long, default_value = "variational")]
     refine: String,
+    /// Where the network starts: coarse (from its own flow at half resolution, upsampled:
+    /// large motions are found) or zero (RAFT's start).
+    #[arg(long, default_value = "coarse")]
+    start: String,
     /// Python interpreter for the OpenCV peers (scripts/flow_baselines.py, built in).
     #[arg(long, default_value = "python3")]
     python: String,
@@ -78,6 +82,9 @@ pub(crate) struct DetectLimitsArgs {
     /// What follows MMS: variational (coarse-to-fine variational refinement) or none.
     #[arg(long, default_value = "variational")]
     refine: String,
+    /// Where the network starts: coarse (from its own flow at half resolution) or zero.
+    #[arg(long, default_value = "coarse")]
+    start: String,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -156,6 +163,10 @@ pub(crate) struct InferArgs {
     /// What follows the network: variational (coarse-to-fine variational refinement) or none.
     #[arg(long, default_value = "variational")]
     refine: String,
+    /// Where the network starts: coarse (from its own flow at half resolution, upsampled:
+    /// large motions are found) or zero (RAFT's start).
+    #[arg(long, default_value = "coarse")]
+    start: String,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -182,6 +193,10 @@ pub(crate) struct EvalArgs {
     /// marked "+ variational"), or only the network (`none`).
     #[arg(long, default_value = "variational")]
     refine: String,
+    /// Where the network starts: coarse (from its own flow at half resolution, upsampled:
+    /// large motions are found) or zero (RAFT's start).
+    #[arg(long, default_value = "coarse")]
+    start: String,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -294,7 +309,8 @@ pub(crate) fn infer(a: InferArgs) -> Result<()> {
         };
     let refine = pins::flow::refine::Refine::parse(&a.refine)?;
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
-        .with_refine(&refine);
+        .with_refine(&refine)
+        .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
     let iters = a.iters.unwrap_or(predictor.config.iters);
     for pair in pair_flows(&predictor, frames.as_slice(), iters) {
         let pair = pair?;
@@ -325,7 +341,8 @@ pub(crate) fn eval(a: EvalArgs) -> Result<()> {
     data.check_has_known_flow()?;
     let refine = pins::flow::refine::Refine::parse(&a.refine)?;
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
-        .with_refine(&refine);
+        .with_refine(&refine)
+        .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
     let report = evaluate(&predictor, &data, &a.iters)?;
     print!("{}", report.markdown());
     if let Some(out) = &a.out {
@@ -359,6 +376,7 @@ pub(crate) fn bench_real(a: BenchRealArgs) -> Result<()> {
         python: a.python.clone(),
         device: pins::flow::device::select(&a.device)?,
         refine: pins::flow::refine::Refine::parse(&a.refine)?,
+        coarse_start: pins::flow::infer::parse_start(&a.start)?,
     };
     let started = std::time::Instant::now();
     let report = run(&a.config, &a.out, &opts, &|line| eprintln!("{line}"))?;
@@ -396,13 +414,14 @@ pub(crate) fn detect_limits(a: DetectLimitsArgs) -> Result<()> {
     }
     cfg.validate()?;
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
-        .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?);
+        .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?)
+        .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
     let runs = limits::run(&cfg, &predictor)?;
     let scores: Vec<_> = runs.iter().flat_map(|r| r.scores.clone()).collect();
     let table = limits::markdown(&scores, &cfg);
     print!("{table}");
     std::fs::create_dir_all(&a.out)?;
-    let json = serde_json::json!({"config": cfg, "weights": a.weights, "refine": a.refine, "scores": scores});
+    let json = serde_json::json!({"config": cfg, "weights": a.weights, "refine": a.refine, "start": a.start, "scores": scores});
     io::write_bytes_atomic(
         &a.out.join("report.json"),
         serde_json::to_string_pretty(&json)?.as_bytes(),

@@ -50,6 +50,10 @@ pub(crate) struct LiveArgs {
     /// pulls a small, dark mover's flow towards its background (README, tracking).
     #[arg(long, default_value = "none")]
     refine: String,
+    /// Where MMS starts: zero (the default here, as the tracking clips were measured) or
+    /// coarse (from its own flow at half resolution).
+    #[arg(long, default_value = "zero")]
+    start: String,
     /// Downscale factor in (0, 1] applied (after stitching) before the flow.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
@@ -130,7 +134,8 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
     let track = track_options(&a)?;
     let predictor =
         pins::flow::infer::Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
-            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?);
+            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?)
+            .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
     let iters = a.iters.unwrap_or(predictor.config.iters);
     let stitcher = match &a.calib {
         Some(p) => {

@@ -52,6 +52,10 @@ struct RunArgs {
     /// pulls a small, dark mover's flow towards its background (README, tracking).
     #[arg(long, default_value = "none")]
     refine: String,
+    /// Where MMS starts: zero (the default here, as the tracking clips were measured) or
+    /// coarse (from its own flow at half resolution).
+    #[arg(long, default_value = "zero")]
+    start: String,
     /// With --frames: run MMS at this fraction of the frame size, in (0, 1] (faster; the flow
     /// is resampled to the full frame, so tracks stay in its pixels).
     #[arg(long, default_value_t = 1.0)]
@@ -286,7 +290,8 @@ fn run(a: RunArgs) -> Result<()> {
                 &a.weights,
                 pins::flow::device::select(&a.device)?,
             )?
-            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?);
+            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?)
+            .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
             let iters = a.iters.unwrap_or(predictor.config.iters);
             let mut flow_ms = 0.0;
             let mut prev: Option<GreyFrame> = None;

@@ -181,7 +181,7 @@ pub fn evaluate(predictor: &Predictor, data: &FlowDataset, iters: &[usize]) -> R
         let (mut seconds, mut refined_seconds) = (0.0, 0.0);
         for ((a, b, gt), pair) in pairs.iter().zip(per_pair.iter_mut()) {
             let t = Instant::now();
-            let pred = predict_flow(model, config, a, b, n, device)?;
+            let pred = predictor.predict_network(a, b, n)?;
             let dt = t.elapsed().as_secs_f64();
             seconds += dt;
             let mut one = FlowErrorSums::default();

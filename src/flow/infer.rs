@@ -8,8 +8,10 @@ use burn::prelude::*;
 use super::data::image_tensor;
 use super::model::{InputPadder, Mms, MmsConfig};
 use super::refine::{Refine, RefineConfig, refine};
+use super::scale::upsample_flow;
 use super::weights;
 use crate::error::{Error, Result};
+use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
 /// The shipped weights, compiled into the binary and named by `--weights NAME` (see the README
@@ -37,6 +39,18 @@ pub const DEFAULT_WEIGHTS: &str = "mms-small-real";
 /// experiments).
 pub const TRACK_WEIGHTS: &str = "mms-small";
 
+/// Parses `--start`: `coarse` (from the network's own flow at half resolution) or `zero`.
+pub fn parse_start(s: &str) -> Result<bool> {
+    match s {
+        "coarse" => Ok(true),
+        "zero" => Ok(false),
+        _ => Err(Error::invalid(
+            "--start",
+            format!("expected coarse or zero, got {s:?}"),
+        )),
+    }
+}
+
 /// Whether `name` is `default` or a built-in weights name rather than a file.
 pub fn is_builtin(name: &str) -> bool {
     name == "default" || BUILTIN_WEIGHTS.iter().any(|(n, _, _)| *n == name)
@@ -49,6 +63,9 @@ pub struct Predictor {
     pub config: MmsConfig,
     pub device: Device,
     pub refine: Option<RefineConfig>,
+    /// Start from the flow the network finds at half resolution (where every motion is half as
+    /// long), upsampled, instead of from zero: large motions are found, then refined.
+    pub coarse_start: bool,
 }
 
 impl Predictor {
@@ -76,6 +93,7 @@ impl Predictor {
             config,
             device,
             refine: Refine::default().config(),
+            coarse_start: false,
         })
     }
 
@@ -91,9 +109,33 @@ impl Predictor {
         self.refined(img1, img2, flow)
     }
 
-    /// The network's own flow, without the refinement.
+    /// The same predictor, starting from its half-resolution flow when `on`.
+    pub fn with_coarse_start(mut self, on: bool) -> Self {
+        self.coarse_start = on;
+        self
+    }
+
+    /// The network's own flow, without the refinement: from zero, or from its flow at half
+    /// resolution (each side halved, at least the network's smallest input) when
+    /// `coarse_start` is set.
     pub fn predict_network(&self, img1: &Image, img2: &Image, iters: usize) -> Result<Flow> {
-        predict_flow(&self.model, &self.config, img1, img2, iters, &self.device)
+        let (h, w) = (img1.height(), img1.width());
+        let init = if self.coarse_start && h.min(w) >= 2 * self.config.min_side().max(16) {
+            let (a, b) = (downscale(img1, 0.5)?, downscale(img2, 0.5)?);
+            let coarse = predict_flow(&self.model, &self.config, &a, &b, iters, &self.device)?;
+            Some(upsample_flow(&coarse, h, w)?)
+        } else {
+            None
+        };
+        predict_flow_from(
+            &self.model,
+            &self.config,
+            img1,
+            img2,
+            iters,
+            &self.device,
+            init.as_ref(),
+        )
     }
 
     /// `flow` after this predictor's refinement (itself when there is none).
@@ -113,6 +155,19 @@ pub fn predict_flow(
     img2: &Image,
     iters: usize,
     device: &Device,
+) -> Result<Flow> {
+    predict_flow_from(model, config, img1, img2, iters, device, None)
+}
+
+/// [`predict_flow`] starting from the flow `init` (the pair's size) instead of zero.
+pub fn predict_flow_from(
+    model: &Mms,
+    config: &MmsConfig,
+    img1: &Image,
+    img2: &Image,
+    iters: usize,
+    device: &Device,
+    init: Option<&Flow>,
 ) -> Result<Flow> {
     if (img1.height(), img1.width()) != (img2.height(), img2.width()) {
         return Err(Error::shape(
@@ -134,8 +189,19 @@ pub fn predict_flow(
     let padder = InputPadder::new(h, w, config.min_side());
     let a = padder.pad(image_tensor(img1, device));
     let b = padder.pad(image_tensor(img2, device));
+    let init = match init {
+        Some(f) if (f.height(), f.width()) == (h, w) => Some(init_tensor(f, &padder, device)?),
+        Some(f) => {
+            return Err(Error::shape(
+                "initial flow",
+                format!("{w}x{h}"),
+                format!("{}x{}", f.width(), f.height()),
+            ));
+        }
+        None => None,
+    };
     let pred = model
-        .forward(a, b, iters, false)
+        .forward_from(a, b, iters, false, init)
         .pop()
         .ok_or_else(|| Error::invalid("model", "no prediction"))?;
     let flow = padder.unpad(pred); // [1, 2, H, W]
@@ -151,4 +217,36 @@ pub fn predict_flow(
         ));
     }
     Ok(out)
+}
+
+/// `flow` (`[2, H, W]`, pixels) padded as the images are and averaged over the 8×8 cells of
+/// the network's grid, in 1/8-resolution pixels.
+///
+/// # Shapes
+/// → `[1, 2, H'/8, W'/8]`
+fn init_tensor(flow: &Flow, padder: &InputPadder, device: &Device) -> Result<Tensor<4>> {
+    if flow.data().iter().any(|v| !v.is_finite()) {
+        return Err(Error::invalid("initial flow", "holds non-finite vectors"));
+    }
+    let (h, w) = (flow.height(), flow.width());
+    let t = Tensor::<4>::from_data(TensorData::new(flow.data().to_vec(), [1, 2, h, w]), device);
+    let padded: Vec<f32> = padder
+        .pad(t)
+        .into_data()
+        .try_to_vec::<f32>()
+        .map_err(|e| Error::invalid("initial flow", format!("{e:?}")))?;
+    let (ph, pw) = padder.padded_size();
+    let (ch, cw) = (ph / 8, pw / 8);
+    let mut cells = vec![0.0f32; 2 * ch * cw];
+    for c in 0..2 {
+        for y in 0..ph {
+            for x in 0..pw {
+                cells[(c * ch + y / 8) * cw + x / 8] += padded[(c * ph + y) * pw + x] / 512.0;
+            }
+        }
+    }
+    Ok(Tensor::<4>::from_data(
+        TensorData::new(cells, [1, 2, ch, cw]),
+        device,
+    ))
 }

@@ -70,6 +70,10 @@ pub struct ExperimentConfig {
     /// What follows MMS: `"none"` (the default for tracking), `"variational"` or a settings file.
     #[serde(default = "default_refine")]
     pub refine: String,
+    /// Where MMS starts: `"zero"` (the default for tracking) or `"coarse"` (from its own flow
+    /// at half resolution).
+    #[serde(default = "default_start")]
+    pub start: String,
     /// Detection: flow magnitude threshold (px/frame) and smallest region (px).
     #[serde(default = "default_threshold")]
     pub threshold: f64,
@@ -102,6 +106,9 @@ fn default_iters() -> usize {
 }
 fn default_refine() -> String {
     "none".into()
+}
+fn default_start() -> String {
+    "zero".into()
 }
 fn default_threshold() -> f64 {
     0.5
@@ -146,6 +153,12 @@ impl ExperimentConfig {
                 "needs at least one clip and one predictor",
             ));
         }
+        crate::flow::infer::parse_start(&self.start).map_err(|_| {
+            Error::invalid(
+                "start",
+                format!("expected \"zero\" or \"coarse\", got {:?}", self.start),
+            )
+        })?;
         crate::flow::refine::Refine::parse(&self.refine).map_err(|_| {
             Error::invalid(
                 "refine",
@@ -324,7 +337,8 @@ pub fn run(
     let predictor = match cfg.flow {
         FlowSource::Mms => Some(
             Predictor::load(&cfg.weights)?
-                .with_refine(&crate::flow::refine::Refine::parse(&cfg.refine)?),
+                .with_refine(&crate::flow::refine::Refine::parse(&cfg.refine)?)
+                .with_coarse_start(crate::flow::infer::parse_start(&cfg.start)?),
         ),
         FlowSource::Truth => None,
     };

@@ -61,6 +61,19 @@ impl Mms {
         iters: usize,
         all: bool,
     ) -> Vec<Tensor<4>> {
+        self.forward_from(image1, image2, iters, all, None)
+    }
+
+    /// [`Mms::forward`] starting from `flow_init` (`[B, 2, H/8, W/8]`, in 1/8-resolution
+    /// pixels) instead of zero flow: RAFT's warm start.
+    pub fn forward_from(
+        &self,
+        image1: Tensor<4>,
+        image2: Tensor<4>,
+        iters: usize,
+        all: bool,
+        flow_init: Option<Tensor<4>>,
+    ) -> Vec<Tensor<4>> {
         let [b, _, h, w] = image1.dims();
         let (h8, w8) = (h / 8, w / 8);
         let device = image1.device();
@@ -84,7 +97,10 @@ impl Mms {
         let context = relu(context.narrow(1, self.hidden_dim, ctx_dim));
 
         let coords0 = coordinate_grid(b, h8, w8, &device); // [B, 2, H/8, W/8] = (x, y)
-        let mut coords1 = coords0.clone();
+        let mut coords1 = match flow_init {
+            Some(init) => coords0.clone() + init,
+            None => coords0.clone(),
+        };
         let mut predictions = Vec::with_capacity(if all { iters } else { 1 });
         for i in 0..iters {
             // RAFT detaches the lookup position: gradients flow through ΔF, not through where

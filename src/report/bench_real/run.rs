@@ -32,6 +32,8 @@ pub struct BenchOptions {
     pub device: Device,
     /// Score the refined flow beside the network's.
     pub refine: crate::flow::refine::Refine,
+    /// Start the network from its half-resolution flow.
+    pub coarse_start: bool,
 }
 
 /// Runs the benchmark of the config at `config_path`, generating data under `out/data`;
@@ -51,8 +53,9 @@ pub fn run(
         config::check_iters(it).map_err(|e| Error::invalid("--iters", e.to_string()))?;
         plan.iters = it.clone();
     }
-    let predictor =
-        Predictor::load_on(&plan.weights, opts.device.clone())?.with_refine(&opts.refine);
+    let predictor = Predictor::load_on(&plan.weights, opts.device.clone())?
+        .with_refine(&opts.refine)
+        .with_coarse_start(opts.coarse_start);
     let mut skipped = Vec::new();
     let mut sets: Vec<&ResolvedSet> = Vec::new();
     for s in &plan.sets {
