@@ -258,3 +258,37 @@ fn sequence_runner_gives_every_consecutive_pair() {
         .unwrap_or_default();
     assert!(err.contains("f1.png") && err.contains("odd.png"), "{err}");
 }
+
+/// The warm start: from a zero flow the network gives exactly its flow from no start, and from
+/// a start the result depends on it (the start is used, not ignored); a start of another size
+/// is an error naming it.
+#[test]
+fn warm_start_is_used_and_zero_start_changes_nothing() {
+    use pins::flow::infer::predict_flow_from;
+    let dev = Device::flex();
+    let cfg = tiny();
+    let model = Mms::new(&cfg, &dev);
+    let (a, b) = (textured(40, 56, (0.0, 0.0)), textured(40, 56, (3.0, -1.0)));
+    let plain = predict_flow(&model, &cfg, &a, &b, 3, &dev).unwrap();
+    let zero = Flow::zeros(40, 56);
+    let from_zero = predict_flow_from(&model, &cfg, &a, &b, 3, &dev, Some(&zero)).unwrap();
+    assert_eq!(plain, from_zero);
+    let mut start = Flow::zeros(40, 56);
+    for y in 0..40 {
+        for x in 0..56 {
+            start.set(y, x, 8.0, -4.0);
+        }
+    }
+    let from_start = predict_flow_from(&model, &cfg, &a, &b, 3, &dev, Some(&start)).unwrap();
+    // An untrained update adds small steps: the start's 8 px stay in the estimate.
+    let mean_u: f32 = from_start.u().iter().sum::<f32>() / from_start.u().len() as f32;
+    let plain_u: f32 = plain.u().iter().sum::<f32>() / plain.u().len() as f32;
+    assert!(
+        (mean_u - plain_u - 8.0).abs() < 2.0,
+        "{mean_u} against {plain_u}"
+    );
+    let e = predict_flow_from(&model, &cfg, &a, &b, 3, &dev, Some(&Flow::zeros(40, 55)))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("initial flow"), "{e}");
+}
