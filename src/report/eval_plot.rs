@@ -28,6 +28,23 @@ pub fn read_peers(path: &Path) -> Result<Vec<PeerRow>> {
     Ok(f.methods)
 }
 
+/// An MMS method through its iteration counts: a line, and its points marked.
+pub fn iteration_series(name: &str, points: Vec<(f64, f64)>, iters: &[usize]) -> [Series; 2] {
+    let iters: Vec<String> = iters.iter().map(|n| n.to_string()).collect();
+    [
+        Series {
+            name: format!("{name} (iterations {})", iters.join(", ")),
+            points: points.clone(),
+            markers: false,
+        },
+        Series {
+            name: format!("{name} points"),
+            points,
+            markers: true,
+        },
+    ]
+}
+
 /// Writes the EPE-against-time PNG.
 pub fn write(report: &EvalReport, peers: Option<&Path>, png: &Path) -> Result<()> {
     // One line for the network alone and one for the refined flow, through the iteration counts.
@@ -43,17 +60,8 @@ pub fn write(report: &EvalReport, peers: Option<&Path>, png: &Path) -> Result<()
         }
         let name = crate::flow::eval::mms_method(&report.model, refined);
         let points: Vec<(f64, f64)> = rows.iter().map(|r| (r.ms_per_pair, r.epe)).collect();
-        let iters: Vec<String> = rows.iter().map(|r| r.iters.to_string()).collect();
-        series.push(Series {
-            name: format!("{name} (iterations {})", iters.join(", ")),
-            points: points.clone(),
-            markers: false,
-        });
-        series.push(Series {
-            name: format!("{name} points"),
-            points,
-            markers: true,
-        });
+        let iters: Vec<usize> = rows.iter().map(|r| r.iters).collect();
+        series.extend(iteration_series(&name, points, &iters));
     }
     if let Some(p) = peers {
         for peer in read_peers(p)? {

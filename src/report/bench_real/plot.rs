@@ -36,20 +36,10 @@ pub fn write(r: &BenchRealReport, dir: &Path) -> Result<Vec<PathBuf>> {
                 .filter(|m| m.iters.is_some() && m.method == name)
                 .collect();
             let points: Vec<(f64, f64)> = of.iter().map(|m| (m.ms_per_pair, m.epe)).collect();
-            let iters: Vec<String> = of
-                .iter()
-                .filter_map(|m| m.iters.map(|n| n.to_string()))
-                .collect();
-            series.push(Series {
-                name: format!("{name} (iterations {})", iters.join(", ")),
-                points: points.clone(),
-                markers: false,
-            });
-            series.push(Series {
-                name: format!("{name} points"),
-                points,
-                markers: true,
-            });
+            let iters: Vec<usize> = of.iter().filter_map(|m| m.iters).collect();
+            series.extend(crate::report::eval_plot::iteration_series(
+                name, points, &iters,
+            ));
         }
         for m in rows.iter().filter(|m| m.iters.is_none()) {
             series.push(Series {
