@@ -62,6 +62,22 @@ fn mms_runs_on_every_image_size() {
     }
 }
 
+/// From 128 px a side the coarse start runs the network at half size first: odd sizes there
+/// give a finite flow of their images' size too.
+#[test]
+fn coarse_start_runs_on_odd_sizes() {
+    let predictor = Predictor::load("default").unwrap();
+    assert!(predictor.coarse_start);
+    for (h, w) in [(128, 128), (129, 131), (135, 257), (257, 135)] {
+        let (a, b) = pair(h, w);
+        let flow = predictor
+            .predict(&a, &b, 2)
+            .unwrap_or_else(|e| panic!("{h}x{w}: {e}"));
+        assert_eq!((flow.height(), flow.width()), (h, w));
+        assert!(flow.data().iter().all(|v| v.is_finite()), "{h}x{w}");
+    }
+}
+
 /// The command line on a size that is 7 mod 8 on one axis and 1 mod 8 on the other, and on the
 /// real KITTI pair (375×1242) when it is there.
 #[test]

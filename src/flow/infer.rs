@@ -56,8 +56,9 @@ pub fn is_builtin(name: &str) -> bool {
     name == "default" || BUILTIN_WEIGHTS.iter().any(|(n, _, _)| *n == name)
 }
 
-/// A loaded network ready to run, and the refinement its flow gets (variational by default:
-/// see [`super::refine`]).
+/// A loaded network ready to run, with how it starts and the refinement its flow gets: by
+/// default the flow commands' settings, the coarse start and the variational refinement (see
+/// [`super::refine`]).
 pub struct Predictor {
     pub model: Mms,
     pub config: MmsConfig,
@@ -93,7 +94,7 @@ impl Predictor {
             config,
             device,
             refine: Refine::default().config(),
-            coarse_start: false,
+            coarse_start: true,
         })
     }
 
