@@ -59,9 +59,6 @@ pub struct PairEval {
     pub mean_gt: f64,
     pub rows: Vec<EvalRow>,
     pub zero_flow: ZeroFlow,
-    /// The refined rows while they are collected; moved to the end of `rows`.
-    #[serde(skip)]
-    refined_rows: Vec<EvalRow>,
 }
 
 /// `report.json`.
@@ -171,15 +168,20 @@ pub fn evaluate(predictor: &Predictor, data: &FlowDataset, iters: &[usize]) -> R
             mean_gt: z.epe,
             rows: Vec::new(),
             zero_flow: (*z).into(),
-            refined_rows: Vec::new(),
         })
         .collect();
     let mut rows = Vec::new();
     let mut refined_rows = Vec::new();
+    // Each pair's refined rows, which follow its network rows.
+    let mut pair_refined: Vec<Vec<EvalRow>> = vec![Vec::new(); per_pair.len()];
     for &n in iters {
         let (mut sums, mut refined_sums) = (FlowErrorSums::default(), FlowErrorSums::default());
         let (mut seconds, mut refined_seconds) = (0.0, 0.0);
-        for ((a, b, gt), pair) in pairs.iter().zip(per_pair.iter_mut()) {
+        for (((a, b, gt), pair), refined) in pairs
+            .iter()
+            .zip(per_pair.iter_mut())
+            .zip(pair_refined.iter_mut())
+        {
             let t = Instant::now();
             let pred = predictor.predict_network(a, b, n)?;
             let dt = t.elapsed().as_secs_f64();
@@ -197,8 +199,7 @@ pub fn evaluate(predictor: &Predictor, data: &FlowDataset, iters: &[usize]) -> R
                 let mut one = FlowErrorSums::default();
                 one.add(&fine, gt, None)?;
                 refined_sums.merge(&one);
-                pair.refined_rows
-                    .push(EvalRow::of(n, true, &one.scores(), 1e3 * dt));
+                refined.push(EvalRow::of(n, true, &one.scores(), 1e3 * dt));
             }
         }
         let k = 1e3 / pairs.len() as f64;
@@ -213,9 +214,8 @@ pub fn evaluate(predictor: &Predictor, data: &FlowDataset, iters: &[usize]) -> R
         }
     }
     rows.append(&mut refined_rows);
-    for pair in &mut per_pair {
-        let mut r = std::mem::take(&mut pair.refined_rows);
-        pair.rows.append(&mut r);
+    for (pair, mut refined) in per_pair.iter_mut().zip(pair_refined) {
+        pair.rows.append(&mut refined);
     }
     let z = zero.scores();
     Ok(EvalReport {
