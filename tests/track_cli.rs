@@ -439,7 +439,8 @@ fn operating_points_give_the_error_against_run_time() {
     };
     write(
         r#""flow": "mms", "confirm": 2,
-           "operating_points": [{"scale": 1.0, "iters": 2}, {"scale": 0.5, "iters": 3}]"#,
+           "operating_points": [{"scale": 1.0, "iters": 2}, {"scale": 0.5, "iters": 3},
+                                {"scale": 1.5, "iters": 2}]"#,
     );
     let out = d.path().join("out");
     let table = ok(&pins(&[
@@ -454,8 +455,8 @@ fn operating_points_give_the_error_against_run_time() {
     assert!(table.contains("total ms"), "{table}");
     let r = json(&out.join("report.json"));
     let points = r["points"].as_array().expect("points");
-    assert_eq!(points.len(), 2, "{table}");
-    for (p, (scale, iters)) in points.iter().zip([(1.0, 2), (0.5, 3)]) {
+    assert_eq!(points.len(), 3, "{table}");
+    for (p, (scale, iters)) in points.iter().zip([(1.0, 2), (0.5, 3), (1.5, 2)]) {
         assert_eq!(p["point"]["scale"].as_f64(), Some(scale));
         assert_eq!(p["point"]["iters"].as_u64(), Some(iters));
         assert!(p["flow_ms_per_frame"].as_f64().unwrap() > 0.0, "{p}");
@@ -481,9 +482,11 @@ fn operating_points_give_the_error_against_run_time() {
             "only MMS",
         ),
         (
-            r#""flow": "mms", "operating_points": [{"scale": 1.5, "iters": 2}]"#,
-            "scale must be in (0, 1]",
+            r#""flow": "mms", "operating_points": [{"scale": 4.5, "iters": 2}]"#,
+            "must be in (0, 4]",
         ),
+        (r#""scale": 1.5"#, "only MMS flow runs at a scale"),
+        (r#""flow": "mms", "scale": 0"#, "must be in (0, 4]"),
         (
             r#""flow": "mms", "operating_points": [{"scale": 0.5, "iters": 0}]"#,
             "iters must be",

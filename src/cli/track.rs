@@ -56,8 +56,9 @@ struct RunArgs {
     /// coarse (from its own flow at half resolution).
     #[arg(long, default_value = "zero")]
     start: String,
-    /// With --frames: run MMS at this fraction of the frame size, in (0, 1] (faster; the flow
-    /// is resampled to the full frame, so tracks stay in its pixels).
+    /// With --frames: run MMS at this multiple of the frame size, in (0, 4]: below 1 faster,
+    /// above 1 (frames interpolated) small movers are seen larger, at the square of the scale
+    /// in time. The flow is resampled to the full frame, so tracks stay in its pixels.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
     /// Output folder (tracks.json and one plot per object).
@@ -96,6 +97,11 @@ struct RunArgs {
     /// Background-motion model fitted and subtracted before the threshold.
     #[arg(long, value_enum, default_value = "affine")]
     background: Background,
+    /// Keep the fitted background motion even where the frames do not support it (by default,
+    /// with frames, a fit that explains them no better than a still background is dropped: an
+    /// estimated flow's global bias on a still scene is not the camera's motion).
+    #[arg(long)]
+    no_background_check: bool,
     /// Turn off the photometric test (it runs whenever frames are given).
     #[arg(long)]
     no_photometric: bool,
@@ -126,6 +132,11 @@ struct RunArgs {
     /// right within 2 px + 30 %.
     #[arg(long, default_value_t = 1.0)]
     consistency_max_ratio: f64,
+    /// Report a track that has coasted (no detection) for up to this many frames; longer
+    /// coasts stay internal, so the ID survives a gap of up to 15 frames. 0 (the default, as
+    /// SORT does) reports only the tracks a detection confirmed in that frame.
+    #[arg(long, default_value_t = 0)]
+    max_coast_reported: usize,
     /// A matched region smaller than this fraction of its track's median area is a fragment
     /// of the object: the track stays alive but coasts (0 turns this off).
     #[arg(long, default_value_t = 0.35)]
@@ -236,6 +247,7 @@ fn run(a: RunArgs) -> Result<()> {
         confirm: a.confirm,
         consistency_max_ratio: a.consistency_max_ratio,
         partial_area_ratio: a.partial_area_ratio,
+        max_coast_reported: a.max_coast_reported,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;
@@ -248,6 +260,7 @@ fn run(a: RunArgs) -> Result<()> {
             Background::Translation => BackgroundModel::Translation,
             Background::Affine => BackgroundModel::Affine,
         },
+        check_background: !a.no_background_check,
         photometric: !a.no_photometric,
         max_residual_ratio: a.max_residual_ratio,
         change: match a.change_test {
@@ -282,9 +295,8 @@ fn run(a: RunArgs) -> Result<()> {
             (run, files.len(), None)
         }
         (None, Some(dir)) => {
-            if !(a.scale.is_finite() && a.scale > 0.0 && a.scale <= 1.0) {
-                bail!("--scale must be in (0, 1], got {}", a.scale);
-            }
+            pins::flow::scale::check_scale(a.scale)
+                .map_err(|_| anyhow::anyhow!("--scale must be in (0, 4], got {}", a.scale))?;
             let files = io::frame_files(dir)?;
             let predictor = pins::flow::infer::Predictor::load_on(
                 &a.weights,

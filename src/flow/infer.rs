@@ -8,7 +8,7 @@ use burn::prelude::*;
 use super::data::image_tensor;
 use super::model::{InputPadder, Mms, MmsConfig};
 use super::refine::{Refine, RefineConfig, refine};
-use super::scale::upsample_flow;
+use super::scale::resize_flow;
 use super::weights;
 use crate::error::{Error, Result};
 use crate::imaging::resize::downscale;
@@ -124,7 +124,7 @@ impl Predictor {
         let init = if self.coarse_start && h.min(w) >= 2 * self.config.min_side().max(16) {
             let (a, b) = (downscale(img1, 0.5)?, downscale(img2, 0.5)?);
             let coarse = predict_flow(&self.model, &self.config, &a, &b, iters, &self.device)?;
-            Some(upsample_flow(&coarse, h, w)?)
+            Some(resize_flow(&coarse, h, w)?)
         } else {
             None
         };

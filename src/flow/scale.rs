@@ -1,15 +1,32 @@
-//! Flow at a reduced resolution (the whole system's speed knob, Notes S13–S15): both frames
-//! area-downscaled by `scale`, MMS run on them, and the flow brought back to the frames' size by
-//! bilinear interpolation with its vectors multiplied by the size ratio, so a tracker and its
-//! truth keep working in the full frame's pixels.
+//! Flow at another resolution (the whole system's speed and accuracy knob, Notes S13–S15):
+//! both frames resampled by `scale` (area-averaged below 1, bilinear above), MMS run on them, and
+//! the flow brought back to the frames' size with its vectors multiplied by the size ratio, so
+//! a tracker and its truth keep working in the full frame's pixels. Below 1 the network runs
+//! faster; above 1 it sees small movers larger (it estimates at 1/8 of its input, where an
+//! 18-px disc is 4 cells wide), at the square of the scale in time.
 
 use super::infer::Predictor;
 use crate::error::{Error, Result};
-use crate::imaging::resize::downscale;
+use crate::imaging::resize::{resize_to, scaled_size};
 use crate::types::{Flow, Image};
 
-/// The flow from `img1` to `img2` estimated at `scale` ∈ (0, 1] of their size, returned at
-/// their size. `scale = 1` is `Predictor::predict` itself.
+/// The largest `scale` (16 times the pixels).
+pub const MAX_SCALE: f64 = 4.0;
+
+/// Checks that `scale` is in (0, [`MAX_SCALE`]].
+pub fn check_scale(scale: f64) -> Result<()> {
+    if scale.is_finite() && scale > 0.0 && scale <= MAX_SCALE {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            "scale",
+            format!("must be in (0, {MAX_SCALE}], got {scale}"),
+        ))
+    }
+}
+
+/// The flow from `img1` to `img2` estimated at `scale` ∈ (0, 4] of their size, returned at
+/// their size. A scale that leaves the size as it is runs `Predictor::predict` itself.
 pub fn predict_scaled(
     predictor: &Predictor,
     img1: &Image,
@@ -17,21 +34,21 @@ pub fn predict_scaled(
     iters: usize,
     scale: f64,
 ) -> Result<Flow> {
+    check_scale(scale)?;
     let (_, h, w) = img1.shape();
-    if scale == 1.0 {
+    let (sh, sw) = scaled_size(h, w, scale);
+    if (sh, sw) == (h, w) {
         return predictor.predict(img1, img2, iters);
     }
-    let (a, b) = (downscale(img1, scale)?, downscale(img2, scale)?);
-    if a.shape() == img1.shape() {
-        return predictor.predict(img1, img2, iters);
-    }
-    upsample_flow(&predictor.predict(&a, &b, iters)?, h, w)
+    let (a, b) = (resize_to(img1, sh, sw)?, resize_to(img2, sh, sw)?);
+    resize_flow(&predictor.predict(&a, &b, iters)?, h, w)
 }
 
-/// `flow` `[2, h', w']` resampled to `[2, h, w]` (pixel centres aligned, `align_corners =
-/// false`, borders clamped), u multiplied by w / w' and v by h / h'. A NaN (unknown) vector
-/// spreads to every output vector that reads it.
-pub fn upsample_flow(flow: &Flow, h: usize, w: usize) -> Result<Flow> {
+/// `flow` `[2, h', w']` resampled to `[2, h, w]` (per axis area-averaged where it shrinks,
+/// bilinear between pixel centres where it grows, `align_corners = false`, borders clamped),
+/// u multiplied by w / w' and v by h / h'. A NaN (unknown) vector spreads to every output
+/// vector that reads it.
+pub fn resize_flow(flow: &Flow, h: usize, w: usize) -> Result<Flow> {
     let (fh, fw) = (flow.height(), flow.width());
     if fh == 0 || fw == 0 || h == 0 || w == 0 {
         return Err(Error::invalid(
@@ -39,32 +56,16 @@ pub fn upsample_flow(flow: &Flow, h: usize, w: usize) -> Result<Flow> {
             format!("cannot resample a {fw}x{fh} flow to {w}x{h}"),
         ));
     }
-    let (ry, rx) = (fh as f64 / h as f64, fw as f64 / w as f64);
-    // For each output coordinate: the two source indices and the weight of the second.
-    let taps = |n: usize, r: f64, m: usize| -> Vec<(usize, usize, f32)> {
-        (0..n)
-            .map(|o| {
-                let s = ((o as f64 + 0.5) * r - 0.5).clamp(0.0, (m - 1) as f64);
-                let i0 = s.floor() as usize;
-                let i1 = (i0 + 1).min(m - 1);
-                (i0, i1, (s - i0 as f64) as f32)
-            })
-            .collect()
-    };
-    let (ty, tx) = (taps(h, ry, fh), taps(w, rx, fw));
-    let (su, sv) = ((1.0 / rx) as f32, (1.0 / ry) as f32);
-    let mut out = vec![0.0f32; 2 * h * w];
-    for (plane, (src, k)) in [(flow.u(), su), (flow.v(), sv)].into_iter().enumerate() {
-        let dst = &mut out[plane * h * w..(plane + 1) * h * w];
-        for (y, &(y0, y1, fy)) in ty.iter().enumerate() {
-            for (x, &(x0, x1, fx)) in tx.iter().enumerate() {
-                let top = src[y0 * fw + x0] * (1.0 - fx) + src[y0 * fw + x1] * fx;
-                let bottom = src[y1 * fw + x0] * (1.0 - fx) + src[y1 * fw + x1] * fx;
-                dst[y * w + x] = (top * (1.0 - fy) + bottom * fy) * k;
-            }
-        }
+    if (fh, fw) == (h, w) {
+        return Ok(flow.clone());
     }
-    Flow::from_vec(h, w, out)
+    let planes = Image::from_vec(2, fh, fw, flow.data().to_vec())?;
+    let mut data = resize_to(&planes, h, w)?.into_vec();
+    let (su, sv) = (w as f32 / fw as f32, h as f32 / fh as f32);
+    let n = h * w;
+    data[..n].iter_mut().for_each(|u| *u *= su);
+    data[n..].iter_mut().for_each(|v| *v *= sv);
+    Flow::from_vec(h, w, data)
 }
 
 #[cfg(test)]
@@ -84,7 +85,7 @@ mod tests {
                 half.set(y, x, 0.5 + 0.1 * x as f32, -1.0 + 0.05 * y as f32);
             }
         }
-        let full = upsample_flow(&half, h, w).expect("resample");
+        let full = resize_flow(&half, h, w).expect("resample");
         // Away from the clamped border, full-res pixel x sits at half-res (x + 0.5) / 2 - 0.5.
         for y in 1..h - 1 {
             for x in 1..w - 1 {
@@ -107,8 +108,8 @@ mod tests {
     fn same_size_is_identity_and_empty_is_an_error() {
         let mut f = Flow::zeros(5, 7);
         f.set(2, 3, 1.5, -2.0);
-        assert_eq!(upsample_flow(&f, 5, 7).expect("same size"), f);
-        assert!(upsample_flow(&f, 0, 7).is_err());
+        assert_eq!(resize_flow(&f, 5, 7).expect("same size"), f);
+        assert!(resize_flow(&f, 0, 7).is_err());
     }
 
     /// Non-square ratios scale u and v each by their own axis.
@@ -120,8 +121,33 @@ mod tests {
                 f.set(y, x, 1.0, 1.0);
             }
         }
-        let g = upsample_flow(&f, 12, 8).expect("resample");
+        let g = resize_flow(&f, 12, 8).expect("resample");
         assert!(g.u().iter().all(|&u| (u - 2.0).abs() < 1e-6));
         assert!(g.v().iter().all(|&v| (v - 3.0).abs() < 1e-6));
+    }
+
+    /// Down again: a uniform flow keeps its vectors scaled by the size ratio, and a flow
+    /// brought up and back down by an integer factor returns to itself.
+    #[test]
+    fn downsampling_averages_and_scales_the_vectors() {
+        let mut f = Flow::zeros(6, 8);
+        for y in 0..6 {
+            for x in 0..8 {
+                f.set(y, x, 0.3 * x as f32, -0.2 * y as f32);
+            }
+        }
+        let up = resize_flow(&f, 12, 16).expect("up");
+        let back = resize_flow(&up, 6, 8).expect("down");
+        for y in 1..5 {
+            for x in 1..7 {
+                let (a, b) = (f.get(y, x), back.get(y, x));
+                assert!(
+                    (a.0 - b.0).abs() < 1e-5 && (a.1 - b.1).abs() < 1e-5,
+                    "{a:?} {b:?}"
+                );
+            }
+        }
+        assert!(check_scale(1.5).is_ok() && check_scale(0.0).is_err());
+        assert!(check_scale(4.5).is_err() && check_scale(f64::NAN).is_err());
     }
 }

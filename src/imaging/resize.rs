@@ -1,12 +1,15 @@
-//! Area downscaling for `--scale`: every output pixel is the mean of the input area it covers
-//! (fractional pixels weighted by their coverage), separably along x then y.
+//! Resampling for `--scale`: downscaling takes every output pixel as the mean of the input area
+//! it covers (fractional pixels weighted by their coverage); upscaling interpolates bilinearly
+//! between pixel centres (`align_corners = false`, borders clamped); both separably along x
+//! then y.
 
 use crate::error::{Error, Result};
 use crate::types::Image;
 
-/// The output size of `(h, w)` at `scale` (at least 8 pixels a side, the network's stride).
+/// The output size of `(h, w)` at `scale` (at least 8 pixels a side, the network's stride,
+/// or the input's own size when it is smaller).
 pub fn scaled_size(h: usize, w: usize, scale: f64) -> (usize, usize) {
-    let s = |n: usize| ((n as f64 * scale).round() as usize).clamp(8.min(n), n);
+    let s = |n: usize| ((n as f64 * scale).round() as usize).max(8.min(n));
     (s(h), s(w))
 }
 
@@ -18,13 +21,33 @@ pub fn downscale(img: &Image, scale: f64) -> Result<Image> {
             format!("must be in (0, 1], got {scale}"),
         ));
     }
-    let (c, h, w) = img.shape();
+    let (_, h, w) = img.shape();
     let (oh, ow) = scaled_size(h, w, scale);
+    resize_to(img, oh, ow)
+}
+
+/// `img` resampled to `oh × ow`: each axis area-averaged where it shrinks, interpolated
+/// bilinearly where it grows; its own size returns a copy.
+pub fn resize_to(img: &Image, oh: usize, ow: usize) -> Result<Image> {
+    let (c, h, w) = img.shape();
+    if oh == 0 || ow == 0 || h == 0 || w == 0 {
+        return Err(Error::invalid(
+            "resize",
+            format!("cannot resample a {w}x{h} image to {ow}x{oh}"),
+        ));
+    }
     if (oh, ow) == (h, w) {
         return Ok(img.clone());
     }
-    let wx = weights(w, ow);
-    let wy = weights(h, oh);
+    let taps = |n: usize, m: usize| {
+        if m <= n {
+            weights(n, m)
+        } else {
+            bilinear(n, m)
+        }
+    };
+    let wx = taps(w, ow);
+    let wy = taps(h, oh);
     let mut out = vec![0.0f32; c * oh * ow];
     let mut row = vec![0.0f32; h * ow];
     for ch in 0..c {
@@ -42,6 +65,21 @@ pub fn downscale(img: &Image, scale: f64) -> Result<Image> {
         }
     }
     Image::from_vec(c, oh, ow, out)
+}
+
+/// Bilinear taps from `n` inputs to `m` outputs, pixel centres aligned (`align_corners =
+/// false`): output `o` reads input position (o + ½)·n/m − ½, clamped to the border.
+fn bilinear(n: usize, m: usize) -> Vec<Vec<(usize, f32)>> {
+    let r = n as f64 / m as f64;
+    (0..m)
+        .map(|o| {
+            let s = ((o as f64 + 0.5) * r - 0.5).clamp(0.0, (n - 1) as f64);
+            let i0 = s.floor() as usize;
+            let i1 = (i0 + 1).min(n - 1);
+            let f = (s - i0 as f64) as f32;
+            vec![(i0, 1.0 - f), (i1, f)]
+        })
+        .collect()
 }
 
 /// For each output index, the input indices it covers and their weights (summing to 1).
@@ -85,5 +123,28 @@ mod tests {
         assert_eq!(downscale(&img, 1.0).unwrap(), img);
         // Never below the network's stride of 8 pixels.
         assert_eq!(downscale(&img, 0.1).unwrap().shape(), (1, 8, 8));
+    }
+
+    /// Upscaling interpolates between pixel centres: a linear ramp stays a linear ramp (with
+    /// the new spacing) inside the frame, and is clamped at the borders.
+    #[test]
+    fn bilinear_upscaling_keeps_a_ramp() {
+        let (h, w) = (6, 10);
+        let data: Vec<f32> = (0..h * w).map(|i| (i % w) as f32 * 2.0).collect();
+        let img = Image::from_vec(1, h, w, data).unwrap();
+        let big = resize_to(&img, 9, 15).unwrap();
+        assert_eq!(big.shape(), (1, 9, 15));
+        for x in 1..14 {
+            // Output x reads input position (x + ½)·10/15 − ½.
+            let want = 2.0 * ((x as f32 + 0.5) * 10.0 / 15.0 - 0.5).clamp(0.0, 9.0);
+            assert!(
+                (big.get(0, 4, x) - want).abs() < 1e-4,
+                "x {x}: {}",
+                big.get(0, 4, x)
+            );
+        }
+        assert_eq!(big.get(0, 0, 0), 0.0);
+        assert!(resize_to(&img, 0, 4).is_err());
+        assert_eq!(resize_to(&img, 6, 10).unwrap(), img);
     }
 }

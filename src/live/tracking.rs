@@ -62,6 +62,7 @@ impl LiveTracker {
         let o = &self.opts;
         let found = detect(flow, pair, o.threshold, o.noise_k, o.min_area, &o.detect)?;
         let dets = found.accepted();
+        self.tracker.set_frame_size(flow.width(), flow.height());
         let out = self.tracker.step(frame, &dets, self.max_h)?;
         Ok(out
             .into_iter()

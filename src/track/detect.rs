@@ -26,6 +26,11 @@ use crate::types::Flow;
 pub struct DetectConfig {
     /// The background's global motion, fitted and subtracted before the threshold.
     pub background: BackgroundModel,
+    /// With frames: the fitted global motion is kept only where the frames support it (warping
+    /// by it explains frame 1 better than no motion, `GreyPair::supports`); otherwise the
+    /// background is still. An estimated flow's global bias on a still scene is not the
+    /// camera's motion.
+    pub check_background: bool,
     /// Pixels sampled (on a regular grid) for the background fit.
     pub background_samples: usize,
     /// The photometric test: on when frames are given.
@@ -63,6 +68,7 @@ impl Default for DetectConfig {
     fn default() -> Self {
         Self {
             background: BackgroundModel::Affine,
+            check_background: true,
             background_samples: 4096,
             photometric: true,
             max_residual_ratio: 0.8,
@@ -157,6 +163,9 @@ impl Candidate {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameDetection {
     pub background: GlobalMotion,
+    /// The fitted global motion that the frames did not support (the background was then
+    /// taken as still); `None` when the fit was kept or not checked.
+    pub rejected_background: Option<GlobalMotion>,
     /// The magnitude threshold used (px/frame, relative to the background).
     pub threshold: f64,
     /// The change test's level (grey levels in [0, 1]), when it ran.
@@ -185,7 +194,15 @@ pub fn detect(
     min_area: usize,
     cfg: &DetectConfig,
 ) -> Result<FrameDetection> {
-    let background = fit(flow, cfg.background, cfg.background_samples);
+    let fitted = fit(flow, cfg.background, cfg.background_samples);
+    let unsupported = cfg.check_background
+        && fitted.params.iter().any(|&a| a != 0.0)
+        && frames.and_then(|p| p.supports(&fitted, cfg.background_samples)) == Some(false);
+    let (background, rejected_background) = if unsupported {
+        (GlobalMotion::zero(), Some(fitted))
+    } else {
+        (fitted, None)
+    };
     let relative = if cfg.background == BackgroundModel::None {
         None
     } else {
@@ -264,6 +281,7 @@ pub fn detect(
         .collect();
     Ok(FrameDetection {
         background,
+        rejected_background,
         threshold,
         change_level: changed.map(|(_, c)| c.level),
         candidates,

@@ -67,6 +67,9 @@ pub struct ExperimentConfig {
     pub weights: String,
     #[serde(default = "default_iters")]
     pub iters: usize,
+    /// The multiple of the frame size MMS runs at, in (0, 4] (see `flow::scale`).
+    #[serde(default = "default_scale")]
+    pub scale: f64,
     /// What follows MMS: `"none"` (the default for tracking), `"variational"` or a settings file.
     #[serde(default = "default_refine")]
     pub refine: String,
@@ -104,6 +107,9 @@ fn default_weights() -> String {
 fn default_iters() -> usize {
     12
 }
+fn default_scale() -> f64 {
+    1.0
+}
 fn default_refine() -> String {
     "none".into()
 }
@@ -125,7 +131,7 @@ impl ExperimentConfig {
     pub fn points(&self) -> Vec<OperatingPoint> {
         if self.operating_points.is_empty() {
             vec![OperatingPoint {
-                scale: 1.0,
+                scale: self.scale,
                 iters: self.iters,
             }]
         } else {
@@ -177,6 +183,13 @@ impl ExperimentConfig {
         if !(self.noise_k.is_finite() && self.noise_k >= 0.0) {
             return Err(Error::invalid("noise_k", "must be finite and >= 0"));
         }
+        crate::flow::scale::check_scale(self.scale)?;
+        if self.scale != 1.0 && self.flow != FlowSource::Mms {
+            return Err(Error::invalid(
+                "scale",
+                "only MMS flow runs at a scale (set \"flow\": \"mms\")",
+            ));
+        }
         self.detect.validate()?;
         if self.confirm == Some(0) {
             return Err(Error::invalid("confirm", "must be >= 1"));
@@ -188,12 +201,8 @@ impl ExperimentConfig {
             ));
         }
         for p in &self.operating_points {
-            if !(p.scale.is_finite() && p.scale > 0.0 && p.scale <= 1.0) {
-                return Err(Error::invalid(
-                    "operating_points",
-                    format!("scale must be in (0, 1], got {}", p.scale),
-                ));
-            }
+            crate::flow::scale::check_scale(p.scale)
+                .map_err(|e| Error::invalid("operating_points", e.to_string()))?;
             if p.iters == 0 || p.iters > 64 {
                 return Err(Error::invalid(
                     "operating_points",

@@ -3,7 +3,8 @@
 //! with a gate; a track is confirmed after `confirm` consecutive hits whose motion is
 //! consistent (the centre moved as the regions' flow said it would, which a blob of
 //! spurious flow on a still background does not do) and ended after `patience` consecutive
-//! misses, so one missed detection does not change an ID. IDs are given at confirmation. When
+//! misses, so one missed detection does not change an ID; a track that coasts out of the frame
+//! ends at once (its object has left the view). IDs are given at confirmation. When
 //! two objects merge into one region, the tracks on it coast until it splits. Each track has
 //! its own predictor.
 
@@ -57,6 +58,11 @@ pub struct TrackerConfig {
     /// the object, does not move the track, which coasts through that frame. 0 turns it off.
     pub partial_area_ratio: f64,
     pub area_window: usize,
+    /// A track that has coasted (no detection) for more than this many consecutive frames is
+    /// kept, to take its object back within `patience`, but not reported: its estimate is an
+    /// extrapolation that no measurement has checked for that long (SORT reports matched
+    /// tracks only, i.e. 0 here).
+    pub max_coast_reported: usize,
 }
 
 impl Default for TrackerConfig {
@@ -75,6 +81,7 @@ impl Default for TrackerConfig {
             birth_exclusion_px: 30.0,
             partial_area_ratio: 0.35,
             area_window: 15,
+            max_coast_reported: 0,
         }
     }
 }
@@ -151,6 +158,9 @@ pub struct Tracker {
     pub assignments: Vec<Option<Assignment>>,
     /// Tentative tracks held back from confirmation in the last frame.
     pub held: Vec<Held>,
+    /// The frame's width and height (px), when known: a coasting track whose centre leaves it
+    /// ends, since its object has left the view (or was never where the track went).
+    frame_size: Option<(f64, f64)>,
 }
 
 impl Tracker {
@@ -201,7 +211,14 @@ impl Tracker {
             next_key: 1,
             assignments: Vec::new(),
             held: Vec::new(),
+            frame_size: None,
         })
+    }
+
+    /// Tells the tracker the frame's size: from then on a track that coasts (no detection)
+    /// with its centre outside the frame ends instead of extrapolating on.
+    pub fn set_frame_size(&mut self, width: usize, height: usize) {
+        self.frame_size = Some((width as f64, height as f64));
     }
 
     /// Processes one frame's detections; returns the confirmed tracks' estimates with
@@ -353,7 +370,16 @@ impl Tracker {
             }
             t.predicted = e.path[0];
             t.centre = e.centroid;
-            if t.confirmed {
+            let outside = self.frame_size.is_some_and(|(w, h)| {
+                let (x, y) = e.centroid;
+                !(x >= 0.0 && y >= 0.0 && x <= w - 1.0 && y <= h - 1.0)
+            });
+            if det.is_none() && !in_merge && outside {
+                // Coasted out of the view: the track ends here, unreported.
+                t.misses = usize::MAX;
+                continue;
+            }
+            if t.confirmed && t.misses <= self.config.max_coast_reported {
                 out.push(TrackEstimate {
                     id: t.id,
                     estimate: e,
@@ -461,6 +487,64 @@ mod tests {
         }
         ids_a.dedup();
         assert_eq!(ids_a.len(), 1, "object a changed ID: {ids_a:?}");
+    }
+
+    /// A missed object's track coasts unreported by default and takes its object back under
+    /// the same ID; reported coasting is an option; a track that coasts out of the frame ends
+    /// there instead of extrapolating outside it.
+    #[test]
+    fn coasting_tracks_are_unreported_and_end_at_the_frame_edge() {
+        let seen = |n: usize| !(12..16).contains(&n);
+        for report in [0usize, 3] {
+            let mut tr = Tracker::new(TrackerConfig {
+                max_coast_reported: report,
+                ..TrackerConfig::default()
+            })
+            .unwrap();
+            tr.set_frame_size(200, 100);
+            let mut ids = Vec::new();
+            for n in 0..30 {
+                let d = det(20.0 + 3.0 * n as f64, 50.0, 3.0, 0.0);
+                let dets = if seen(n) { vec![d] } else { vec![] };
+                let out = tr.step(n, &dets, 1).unwrap();
+                if (12..16).contains(&n) {
+                    // Coasting for n − 11 frames.
+                    assert_eq!(
+                        out.len(),
+                        usize::from(n - 11 <= report),
+                        "frame {n}: {out:?}"
+                    );
+                    assert!(out.iter().all(|t| !t.observed));
+                } else if n >= 5 {
+                    assert_eq!(out.len(), 1, "frame {n}");
+                    ids.push(out[0].id);
+                }
+            }
+            ids.dedup();
+            assert_eq!(ids, vec![1], "report {report}: the ID survives the gap");
+        }
+        // Moving left 6 px a frame from x = 40 and never seen again after frame 6: it would
+        // coast to x < 0 by frame 12 and on for 15 frames; it ends there.
+        let mut tr = Tracker::new(TrackerConfig {
+            max_coast_reported: 30,
+            ..TrackerConfig::default()
+        })
+        .unwrap();
+        tr.set_frame_size(200, 100);
+        for n in 0..25 {
+            let dets = if n <= 6 {
+                vec![det(76.0 - 6.0 * n as f64, 50.0, -6.0, 0.0)]
+            } else {
+                vec![]
+            };
+            let out = tr.step(n, &dets, 1).unwrap();
+            for t in &out {
+                assert!(t.estimate.centroid.0 >= 0.0, "frame {n}: {:?}", t.estimate);
+            }
+            if n >= 14 {
+                assert!(out.is_empty(), "frame {n}: the track left the frame");
+            }
+        }
     }
 
     #[test]

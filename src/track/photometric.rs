@@ -108,6 +108,32 @@ impl GreyPair {
         (n > 0).then(|| s / n as f64)
     }
 
+    /// Whether the frames support the global `motion` over no motion at all: the mean |frame 1
+    /// − frame 2 warped| over a regular grid of about `samples` pixels (each counted only where
+    /// both warps land inside the frame) is lower with it. An estimated flow can carry a global
+    /// bias of a pixel on a still, dark scene; subtracted as the background's motion, it would
+    /// make every textured patch of the still scene "move", and with that background the
+    /// photometric test would pass them. Movers add the same to both means. `None` when no
+    /// grid pixel counts.
+    pub fn supports(&self, motion: &GlobalMotion, samples: usize) -> Option<bool> {
+        let (w, h) = (self.width, self.height);
+        let stride = (((h * w) as f64 / samples.max(16) as f64).sqrt().floor() as usize).max(1);
+        let (mut sm, mut sz, mut n) = (0.0f64, 0.0f64, 0usize);
+        for y in (stride / 2..h).step_by(stride) {
+            for x in (stride / 2..w).step_by(stride) {
+                let (xf, yf) = (x as f64, y as f64);
+                let (mu, mv) = motion.at(xf, yf);
+                if let (Some(bm), Some(bz)) = (self.sample(xf + mu, yf + mv), self.sample(xf, yf)) {
+                    let a = self.a[y * w + x] as f64;
+                    sm += (a - bm).abs();
+                    sz += (a - bz).abs();
+                    n += 1;
+                }
+            }
+        }
+        (n > 0).then_some(sm < sz)
+    }
+
     /// |frame 1 − frame 2 at the pixel moved by `shift`| at pixel `p` (a flat index); `None`
     /// outside the frame.
     pub fn residual_at(&self, p: usize, shift: (f64, f64)) -> Option<f64> {
@@ -252,5 +278,44 @@ mod tests {
         assert!(pair.residuals(&[0, 1, 99_999], &out, &zero).is_none());
         assert!(pair.residuals(&mover, &Flow::zeros(4, 4), &zero).is_none());
         assert!(GreyPair::new(&a, &Image::zeros(1, 4, 4)).is_none());
+    }
+
+    /// A still scene with noise: a global motion of a pixel (an estimated flow's bias) is not
+    /// supported and zero is; the same scene panned by that motion supports it.
+    #[test]
+    fn the_frames_decide_whether_a_global_motion_is_real() {
+        use crate::rng::stream;
+        use rand_distr::{Distribution, StandardNormal};
+        let (w, h) = (96, 72);
+        let tex = |x: f64, y: f64| 0.4 + 0.15 * (x * 0.21).sin() * (y * 0.17).cos() + 0.002 * x;
+        let (du, dv) = (0.9, -0.6);
+        let mut rng = stream(5, &[1]);
+        let mut noisy = |v: f64| {
+            let n: f64 = StandardNormal.sample(&mut rng);
+            (v + 0.01 * n) as f32
+        };
+        let (mut a, mut still, mut panned) = (
+            Image::zeros(1, h, w),
+            Image::zeros(1, h, w),
+            Image::zeros(1, h, w),
+        );
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f64, y as f64);
+                a.set(0, y, x, noisy(tex(xf, yf)));
+                still.set(0, y, x, noisy(tex(xf, yf)));
+                panned.set(0, y, x, noisy(tex(xf - du, yf - dv)));
+            }
+        }
+        let mut bias = GlobalMotion::zero();
+        bias.params[0] = du;
+        bias.params[3] = dv;
+        let still = GreyPair::new(&a, &still).unwrap();
+        let panned = GreyPair::new(&a, &panned).unwrap();
+        assert_eq!(still.supports(&bias, 4096), Some(false));
+        assert_eq!(panned.supports(&bias, 4096), Some(true));
+        // A single pixel: no grid point has both warps inside.
+        let one = GreyPair::new(&Image::zeros(1, 1, 1), &Image::zeros(1, 1, 1)).unwrap();
+        assert_eq!(one.supports(&bias, 16), None);
     }
 }

@@ -126,6 +126,10 @@ pub struct DebugFrame {
     /// The background model's flow at the frame centre and its largest magnitude at a corner.
     pub background_centre: [f64; 2],
     pub background_max: f64,
+    /// The fitted background motion at the frame centre when the frames did not support it
+    /// (the background was then taken as still, and the two fields above are zero).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub background_rejected: Option<[f64; 2]>,
     pub regions: Vec<DebugRegion>,
     /// Tentative tracks with a full but inconsistent confirmation window.
     pub held: Vec<Held>,
@@ -270,6 +274,7 @@ pub fn track_sequence(
         )
         .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
         let dets = found.accepted();
+        tracker.set_frame_size(s.1, s.0);
         for t in tracker.step(frame, &dets, max_h)? {
             let e = &t.estimate;
             let predicted = opts
@@ -302,6 +307,10 @@ pub fn track_sequence(
                 change_level: found.change_level,
                 background_centre: [bc.0, bc.1],
                 background_max: found.background.max_magnitude(s.1, s.0),
+                background_rejected: found.rejected_background.map(|g| {
+                    let c = g.at(cx, cy);
+                    [c.0, c.1]
+                }),
                 regions: found
                     .candidates
                     .iter()

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
-use super::scale::upsample_flow;
+use super::scale::resize_flow;
 
 /// How a flow estimate is refined after the network.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -227,7 +227,7 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
                 .zip(start.data())
                 .map(|(r, s)| r - s)
                 .collect();
-            let inc = upsample_flow(&Flow::from_vec(sh, sw, inc)?, h, w)?;
+            let inc = resize_flow(&Flow::from_vec(sh, sw, inc)?, h, w)?;
             let mut data = out.data().to_vec();
             data.iter_mut().zip(inc.data()).for_each(|(d, i)| *d += i);
             out = Flow::from_vec(h, w, data)?;
