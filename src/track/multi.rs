@@ -254,7 +254,42 @@ impl Tracker {
                     .collect()
             })
             .collect();
-        let matches = assign(&cost);
+        let mut matches = assign(&cost);
+        // A second chance (as ByteTrack's second association): a confirmed track left without
+        // a detection takes an unmatched one within the birth-exclusion radius of its
+        // prediction, by distance alone. One bad match can throw a track's velocity off, and
+        // the velocity gate would then refuse its object, which would only be called a
+        // fragment of it and never move it again.
+        let taken: Vec<bool> = (0..detections.len())
+            .map(|j| matches.contains(&Some(j)))
+            .collect();
+        let orphans: Vec<usize> = (0..self.tracks.len())
+            .filter(|&i| matches[i].is_none() && self.tracks[i].confirmed)
+            .collect();
+        if !orphans.is_empty() && taken.iter().any(|&t| !t) {
+            let exclusion = self.config.birth_exclusion_px;
+            let second: Vec<Vec<f64>> = orphans
+                .iter()
+                .map(|&i| {
+                    let p = self.tracks[i].predicted;
+                    detections
+                        .iter()
+                        .zip(&taken)
+                        .map(|(d, &t)| {
+                            let dist = (d.centroid.0 - p.0).hypot(d.centroid.1 - p.1);
+                            if !t && dist <= exclusion {
+                                dist
+                            } else {
+                                f64::INFINITY
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
+            for (&i, m) in orphans.iter().zip(assign(&second)) {
+                matches[i] = m;
+            }
+        }
         // A merge: a confirmed track left without a detection whose prediction lies inside a
         // detection given to another track (within that region's equivalent radius). Both
         // objects are then hidden in one region, whose centre and flow belong to neither, so
