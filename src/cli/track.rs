@@ -97,9 +97,9 @@ struct RunArgs {
     /// Background-motion model fitted and subtracted before the threshold.
     #[arg(long, value_enum, default_value = "affine")]
     background: Background,
-    /// Keep the fitted background motion even where the frames do not support it (by default,
-    /// with frames, a fit that explains them no better than a still background is dropped: an
-    /// estimated flow's global bias on a still scene is not the camera's motion).
+    /// Let the change and photometric tests use the fitted background motion even where the
+    /// frames do not support it (by default, with frames, they then take the background as
+    /// still: an estimated flow's global bias on a still scene is not the camera's motion).
     #[arg(long)]
     no_background_check: bool,
     /// Turn off the photometric test (it runs whenever frames are given).

@@ -26,10 +26,10 @@ use crate::types::Flow;
 pub struct DetectConfig {
     /// The background's global motion, fitted and subtracted before the threshold.
     pub background: BackgroundModel,
-    /// With frames: the fitted global motion is kept only where the frames support it (warping
-    /// by it explains frame 1 better than no motion, `GreyPair::supports`); otherwise the
-    /// background is still. An estimated flow's global bias on a still scene is not the
-    /// camera's motion.
+    /// With frames: the change mask and the photometric test compare against the fitted
+    /// global motion only where the frames support it (warping by it explains frame 1 better
+    /// than no motion, `GreyPair::supports`), and against a still background otherwise. An
+    /// estimated flow's global bias on a still scene is not the camera's motion.
     pub check_background: bool,
     /// Pixels sampled (on a regular grid) for the background fit.
     pub background_samples: usize,
@@ -163,8 +163,9 @@ impl Candidate {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameDetection {
     pub background: GlobalMotion,
-    /// The fitted global motion that the frames did not support (the background was then
-    /// taken as still); `None` when the fit was kept or not checked.
+    /// The fitted global motion when the frames did not support it: it was still subtracted
+    /// from the flow, but the change mask and the photometric test took the background as
+    /// still; `None` when the frames supported it or were not checked.
     pub rejected_background: Option<GlobalMotion>,
     /// The magnitude threshold used (px/frame, relative to the background).
     pub threshold: f64,
@@ -194,14 +195,18 @@ pub fn detect(
     min_area: usize,
     cfg: &DetectConfig,
 ) -> Result<FrameDetection> {
-    let fitted = fit(flow, cfg.background, cfg.background_samples);
+    let background = fit(flow, cfg.background, cfg.background_samples);
+    // What the frames say the background does: the fit, unless they do not support it. The
+    // fit still comes off the flow before the threshold (an estimator's bias is removed like
+    // a camera's motion), but the tests that ask the frames what changed (the change mask and
+    // the photometric test) compare against the motion the frames support.
     let unsupported = cfg.check_background
-        && fitted.params.iter().any(|&a| a != 0.0)
-        && frames.and_then(|p| p.supports(&fitted, cfg.background_samples)) == Some(false);
-    let (background, rejected_background) = if unsupported {
-        (GlobalMotion::zero(), Some(fitted))
+        && background.params.iter().any(|&a| a != 0.0)
+        && frames.and_then(|p| p.supports(&background, cfg.background_samples)) == Some(false);
+    let (null, rejected_background) = if unsupported {
+        (GlobalMotion::zero(), Some(background))
     } else {
-        (fitted, None)
+        (background, None)
     };
     let relative = if cfg.background == BackgroundModel::None {
         None
@@ -211,13 +216,7 @@ pub fn detect(
     let test = relative.as_ref().unwrap_or(flow);
     let pair = frames.filter(|_| cfg.change == Some(true));
     let changed = pair.map(|p| {
-        let c = change_mask(
-            p,
-            &background,
-            cfg.change_window,
-            cfg.change_k,
-            cfg.min_change,
-        );
+        let c = change_mask(p, &null, cfg.change_window, cfg.change_k, cfg.min_change);
         (p, c)
     });
     let (threshold, found) = match &changed {
@@ -242,7 +241,7 @@ pub fn detect(
         .into_iter()
         .map(|(region, pixels)| {
             let photometric = frames.filter(|_| cfg.photometric);
-            let residuals = photometric.and_then(|p| p.residuals(&pixels, flow, &background));
+            let residuals = photometric.and_then(|p| p.residuals(&pixels, flow, &null));
             let (accepted, reason) = match (photometric, residuals) {
                 (None, _) => (true, "magnitude (no photometric test)".to_string()),
                 (Some(_), None) => (

@@ -127,7 +127,8 @@ pub struct DebugFrame {
     pub background_centre: [f64; 2],
     pub background_max: f64,
     /// The fitted background motion at the frame centre when the frames did not support it
-    /// (the background was then taken as still, and the two fields above are zero).
+    /// (it was subtracted from the flow, but the change and photometric tests took the
+    /// background as still).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub background_rejected: Option<[f64; 2]>,
     pub regions: Vec<DebugRegion>,
