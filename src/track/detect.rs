@@ -202,6 +202,7 @@ pub fn detect(
     // the photometric test) compare against the motion the frames support.
     let unsupported = cfg.check_background
         && background.params.iter().any(|&a| a != 0.0)
+        && (cfg.photometric || cfg.change == Some(true))
         && frames.and_then(|p| p.supports(&background, cfg.background_samples)) == Some(false);
     let (null, rejected_background) = if unsupported {
         (GlobalMotion::zero(), Some(background))

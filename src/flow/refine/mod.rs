@@ -202,14 +202,8 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
         if sh < 3 || sw < 3 {
             continue; // too small to hold a derivative
         }
-        let start = scale_flow(&out, s)?;
-        if (start.height(), start.width()) != (sh, sw) {
-            return Err(Error::shape(
-                "scaled flow",
-                format!("{sw}x{sh}"),
-                format!("{}x{}", start.width(), start.height()),
-            ));
-        }
+        // The flow area-averaged as the frames are, its vectors scaled by the size ratio.
+        let start = resize_flow(&out, sh, sw)?;
         let (i0, i1) = (grey255(&a), grey255(&b));
         let mut u = start.u().to_vec();
         let mut v = start.v().to_vec();
@@ -234,24 +228,6 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
         }
     }
     Ok(out)
-}
-
-/// `flow` area-averaged by the factor `s` (as the frames are) with its vectors scaled by the
-/// size ratio.
-fn scale_flow(flow: &Flow, s: u32) -> Result<Flow> {
-    let (fh, fw) = (flow.height(), flow.width());
-    if s == 1 {
-        return Ok(flow.clone());
-    }
-    let img = Image::from_vec(2, fh, fw, flow.data().to_vec())?;
-    let small = downscale(&img, 1.0 / s as f64)?;
-    let (h, w) = (small.height(), small.width());
-    let (rx, ry) = (w as f32 / fw as f32, h as f32 / fh as f32);
-    let mut data = small.into_vec();
-    let n = h * w;
-    data[..n].iter_mut().for_each(|x| *x *= rx);
-    data[n..].iter_mut().for_each(|x| *x *= ry);
-    Flow::from_vec(h, w, data)
 }
 
 /// The luma (Rec. 601) of `img` in 8-bit units; a grey image is its own channel.
