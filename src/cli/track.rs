@@ -9,6 +9,7 @@ use pins::io;
 use pins::scene::truth::Truth;
 use pins::track::photometric::{GreyFrame, GreyPair};
 use pins::track::run::Tracks;
+use pins::track::still_background::PlaceConfig;
 
 #[derive(clap::Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
@@ -110,11 +111,20 @@ struct RunArgs {
     /// instead of the flow-noise floor of --noise-k. `auto`: on when MMS estimates the flow
     /// here, off for --flows (turn it on for estimated flows read from files).
     #[arg(long, value_enum, default_value = "auto")]
-    change_test: ChangeTest,
+    change_test: AutoSwitch,
     /// Change test: the frames' noise floor is their averaged difference's median plus this
     /// many robust standard deviations.
     #[arg(long, default_value_t = 4.0)]
     change_k: f64,
+    /// Placement on the frame (with frames, while the camera is still): each accepted
+    /// region's centroid moves to where frame n differs from the temporal median of the last
+    /// frames near it, the object rather than the flow's blob. `auto`: on when MMS estimates
+    /// the flow here, off for --flows (turn it on for estimated flows read from files).
+    #[arg(long, value_enum, default_value = "auto")]
+    place: AutoSwitch,
+    /// Placement: frames in the background's temporal median.
+    #[arg(long, default_value_t = 30)]
+    place_frames: usize,
     /// Change test: do not trim from each grown region the pixels that the background's
     /// motion explains better than the region's (the halo of an estimated flow).
     #[arg(long)]
@@ -161,7 +171,7 @@ enum Background {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
-enum ChangeTest {
+enum AutoSwitch {
     /// On when MMS estimates the flow here (--frames alone), off for --flows.
     Auto,
     On,
@@ -264,12 +274,22 @@ fn run(a: RunArgs) -> Result<()> {
         photometric: !a.no_photometric,
         max_residual_ratio: a.max_residual_ratio,
         change: match a.change_test {
-            ChangeTest::Auto => None,
-            ChangeTest::On => Some(true),
-            ChangeTest::Off => Some(false),
+            AutoSwitch::Auto => None,
+            AutoSwitch::On => Some(true),
+            AutoSwitch::Off => Some(false),
         },
         change_k: a.change_k,
         trim: !a.no_trim,
+        place: PlaceConfig {
+            enabled: match a.place {
+                AutoSwitch::Auto => None,
+                AutoSwitch::On => Some(true),
+                AutoSwitch::Off => Some(false),
+            },
+            frames: a.place_frames,
+            min_frames: PlaceConfig::default().min_frames.min(a.place_frames.max(1)),
+            ..PlaceConfig::default()
+        },
         ..DetectConfig::default()
     };
     detect.validate()?;

@@ -10,6 +10,7 @@ use crate::track::detect::detect;
 use crate::track::multi::Tracker;
 use crate::track::photometric::GreyPair;
 use crate::track::run::TrackOptions;
+use crate::track::still_background::StillBackground;
 use crate::types::Flow;
 
 /// One confirmed object after one frame.
@@ -29,6 +30,7 @@ pub struct Object {
 /// The incremental tracker.
 pub struct LiveTracker {
     tracker: Tracker,
+    placer: Option<StillBackground>,
     opts: TrackOptions,
     max_h: usize,
 }
@@ -40,6 +42,7 @@ impl LiveTracker {
         let max_h = opts.horizons.iter().copied().max().unwrap_or(1);
         Ok(Self {
             tracker: Tracker::new(opts.tracker.clone())?,
+            placer: opts.detect.still_background()?,
             opts,
             max_h,
         })
@@ -48,6 +51,7 @@ impl LiveTracker {
     /// Starts over (a new frame size): no track survives.
     pub fn reset(&mut self) -> Result<()> {
         self.tracker = Tracker::new(self.opts.tracker.clone())?;
+        self.placer = self.opts.detect.still_background()?;
         Ok(())
     }
 
@@ -60,7 +64,10 @@ impl LiveTracker {
         pair: Option<&GreyPair>,
     ) -> Result<Vec<Object>> {
         let o = &self.opts;
-        let found = detect(flow, pair, o.threshold, o.noise_k, o.min_area, &o.detect)?;
+        let mut found = detect(flow, pair, o.threshold, o.noise_k, o.min_area, &o.detect)?;
+        if let (Some(model), Some(pair)) = (self.placer.as_mut(), pair) {
+            found.place(model, pair.first_colour());
+        }
         let dets = found.accepted();
         self.tracker.set_frame_size(flow.width(), flow.height());
         let out = self.tracker.step(frame, &dets, self.max_h)?;

@@ -15,6 +15,7 @@ use super::grow::{grow, seed_motion};
 use super::noise_floor::noise_floor;
 use super::photometric::GreyPair;
 use super::roi::{Region, components, regions_of};
+use super::still_background::{ColourFrame, PlaceConfig, Placement, StillBackground};
 use super::trim::trim;
 use crate::error::{Error, Result};
 use crate::imaging::box_filter::dilate;
@@ -62,6 +63,10 @@ pub struct DetectConfig {
     /// background's motion explains better than the region's motion, by more than the change
     /// test's level (the halo an estimated flow leaves around a mover; `track::trim`).
     pub trim: bool,
+    /// With frames and a still camera: each accepted region's centroid moves to its object in
+    /// the frame (where it differs from the temporal median of the last frames;
+    /// `track::still_background`).
+    pub place: PlaceConfig,
 }
 
 impl Default for DetectConfig {
@@ -79,6 +84,7 @@ impl Default for DetectConfig {
             grow_margin: 24,
             grow_reach: 10,
             trim: true,
+            place: PlaceConfig::default(),
         }
     }
 }
@@ -89,8 +95,21 @@ impl DetectConfig {
     pub fn resolved(&self, estimated_flow: bool) -> Self {
         Self {
             change: Some(self.change.unwrap_or(estimated_flow)),
+            place: PlaceConfig {
+                enabled: Some(self.place.enabled.unwrap_or(estimated_flow)),
+                ..self.place.clone()
+            },
             ..self.clone()
         }
+    }
+
+    /// The still background of a run when the placement is on (its `null` default counts as
+    /// on: call `resolved` first to settle it by the flow source).
+    pub fn still_background(&self) -> Result<Option<StillBackground>> {
+        if self.place.enabled == Some(false) {
+            return Ok(None);
+        }
+        StillBackground::new(self.place.clone()).map(Some)
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -136,7 +155,7 @@ impl DetectConfig {
                 format!("must be 16..=1e8, got {}", self.background_samples),
             ));
         }
-        Ok(())
+        self.place.validate()
     }
 }
 
@@ -149,6 +168,8 @@ pub struct Candidate {
     pub residuals: Option<(f64, f64)>,
     pub accepted: bool,
     pub reason: String,
+    /// What the still background did with an accepted region's centroid (when it ran).
+    pub placement: Option<Placement>,
 }
 
 impl Candidate {
@@ -182,6 +203,31 @@ impl FrameDetection {
             .filter(|c| c.accepted)
             .map(|c| c.region.clone())
             .collect()
+    }
+}
+
+impl FrameDetection {
+    /// Places the accepted regions on frame n (`frame`, its colour samples) with the still
+    /// background, which then keeps the frame. The camera counts as still when the frames did
+    /// not support the fitted background motion or when that motion is small.
+    pub fn place(&mut self, model: &mut StillBackground, frame: &ColourFrame) {
+        let camera = match self.rejected_background {
+            Some(_) => 0.0,
+            None => self.background.max_magnitude(frame.width, frame.height),
+        };
+        let wanted: Vec<((f64, f64), usize)> = self
+            .candidates
+            .iter()
+            .filter(|c| c.accepted)
+            .map(|c| (c.region.centroid, c.region.pixels))
+            .collect();
+        let placed = model.place(frame, camera, &wanted);
+        for (c, p) in self.candidates.iter_mut().filter(|c| c.accepted).zip(placed) {
+            if let Placement::Moved { to } = p {
+                c.region.placed = Some(to);
+            }
+            c.placement = Some(p);
+        }
     }
 }
 
@@ -276,6 +322,7 @@ pub fn detect(
                 residuals,
                 accepted,
                 reason,
+                placement: None,
             }
         })
         .collect();

@@ -20,4 +20,5 @@ pub mod predict;
 pub mod roi;
 pub mod run;
 pub mod static_flow;
+pub mod still_background;
 pub mod trim;

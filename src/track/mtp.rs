@@ -129,8 +129,9 @@ impl Mtp {
         self.y.predict();
         let (speed, direction) = match region {
             Some(r) => {
-                self.x.update(r.centroid.0);
-                self.y.update(r.centroid.1);
+                let (cx, cy) = r.placed.unwrap_or(r.centroid);
+                self.x.update(cx);
+                self.y.update(cy);
                 // The region's flow is the object's displacement to the next frame.
                 if let Some(d) = r.direction {
                     self.x
@@ -196,6 +197,7 @@ mod tests {
             direction: dir,
             bbox: [0, 0, 1, 1],
             mean_flow: (0.0, 0.0),
+            placed: None,
         }
     }
 

@@ -496,6 +496,7 @@ mod tests {
             direction: Some(if vx >= 0.0 { 0.0 } else { std::f64::consts::PI }),
             bbox: [0, 0, 1, 1],
             mean_flow: (vx, vy),
+            placed: None,
         }
     }
 

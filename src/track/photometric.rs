@@ -7,14 +7,17 @@
 use std::sync::Arc;
 
 use super::background::GlobalMotion;
+use super::still_background::ColourFrame;
 use crate::types::{Flow, Image};
 
-/// One frame as a grey plane, lightly smoothed (3×3 box) against sensor noise; cheap to clone.
+/// One frame as a grey plane, lightly smoothed (3×3 box) against sensor noise, with its
+/// 8-bit colour samples for the still background (`track::still_background`); cheap to clone.
 #[derive(Clone, Debug)]
 pub struct GreyFrame {
     pub width: usize,
     pub height: usize,
     data: Arc<[f32]>,
+    colour: ColourFrame,
 }
 
 impl GreyFrame {
@@ -24,6 +27,7 @@ impl GreyFrame {
             width: w,
             height: h,
             data: smooth(&grey(img), w, h).into(),
+            colour: ColourFrame::new(img),
         }
     }
 }
@@ -35,6 +39,7 @@ pub struct GreyPair {
     pub height: usize,
     a: Arc<[f32]>,
     b: Arc<[f32]>,
+    first: ColourFrame,
 }
 
 impl GreyPair {
@@ -54,7 +59,13 @@ impl GreyPair {
             height: h,
             a: first.data.clone(),
             b: second.data.clone(),
+            first: first.colour.clone(),
         })
+    }
+
+    /// Frame 1's colour samples.
+    pub fn first_colour(&self) -> &ColourFrame {
+        &self.first
     }
 
     /// Mean |frame 1 − frame 2 warped by `flow`| and mean |frame 1 − frame 2 warped by

@@ -21,6 +21,10 @@ pub struct Region {
     pub bbox: [usize; 4],
     /// Mean flow vector (px/frame): the region's displacement to the next frame.
     pub mean_flow: (f64, f64),
+    /// The object's centre in the frame, when the still background found it
+    /// (`track::still_background`): the trajectory filter measures this instead of the
+    /// flow's centroid; association and confirmation keep the flow's.
+    pub placed: Option<(f64, f64)>,
 }
 
 /// All regions with at least `min_area` pixels whose |flow| > `threshold`, largest first.
@@ -169,6 +173,7 @@ impl Region {
             direction: (resultant > 1e-9).then(|| cy.atan2(cx)),
             bbox,
             mean_flow: (su / nf, sv / nf),
+            placed: None,
         }
     }
 }

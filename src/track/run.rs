@@ -142,7 +142,15 @@ pub struct DebugRegion {
     /// `[x_min, y_min, x_max, y_max]`.
     pub bbox: [usize; 4],
     pub area: usize,
+    /// The flow's centroid (association and confirmation).
     pub centroid: [f64; 2],
+    /// The object's centre in the frame, when the still background placed it (the trajectory
+    /// filter's measurement).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placed: Option<[f64; 2]>,
+    /// What the still background did with the centroid (accepted regions, when it ran).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placement: Option<String>,
     pub mean_flow: [f64; 2],
     pub speed: f64,
     /// Mean warp residual with the region's flow and with the background's motion, and their
@@ -241,6 +249,7 @@ pub fn track_sequence(
     let mut still = truth
         .map(|t| StaticFlow::new(t, STATIC_MARGIN_PX))
         .transpose()?;
+    let mut placer = opts.detect.still_background()?;
     for (frame, item) in flows.enumerate() {
         let step = item?;
         let (name, flow) = (&step.name, &step.flow);
@@ -265,7 +274,7 @@ pub fn track_sequence(
                 format!("{}x{}", p.width, p.height),
             ));
         }
-        let found = detect(
+        let mut found = detect(
             flow,
             step.frames.as_ref(),
             opts.threshold,
@@ -274,6 +283,9 @@ pub fn track_sequence(
             &opts.detect,
         )
         .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
+        if let (Some(model), Some(pair)) = (placer.as_mut(), step.frames.as_ref()) {
+            found.place(model, pair.first_colour());
+        }
         let dets = found.accepted();
         tracker.set_frame_size(s.1, s.0);
         for t in tracker.step(frame, &dets, max_h)? {
@@ -321,6 +333,8 @@ pub fn track_sequence(
                             bbox: r.bbox,
                             area: r.pixels,
                             centroid: [r.centroid.0, r.centroid.1],
+                            placed: r.placed.map(|p| [p.0, p.1]),
+                            placement: c.placement.as_ref().map(|p| p.describe()),
                             mean_flow: [r.mean_flow.0, r.mean_flow.1],
                             speed: r.speed,
                             residual_flow: c.residuals.map(|x| x.0),
