@@ -385,3 +385,107 @@ fn median(v: &mut [f64]) -> f64 {
     let mid = v.len() / 2;
     *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_distr::{Distribution, StandardNormal};
+
+    const W: usize = 96;
+    const H: usize = 72;
+    const R: f64 = 8.0;
+
+    /// Frame `n` of a still, textured colour background with a bluish disc of radius 8 whose
+    /// centre is `centre(n)`, with sensor noise (σ = 3 levels).
+    fn frame(n: usize, centre: impl Fn(usize) -> (f64, f64), seed: u64) -> ColourFrame {
+        let mut rng = crate::rng::stream(seed, &[n as u64]);
+        let mut img = Image::zeros(3, H, W);
+        let (cx, cy) = centre(n);
+        for y in 0..H {
+            for x in 0..W {
+                let (xf, yf) = (x as f64, y as f64);
+                let inside = (xf - cx).hypot(yf - cy) <= R;
+                for c in 0..3 {
+                    let bg = 0.35 + 0.1 * (xf * 0.2 + c as f64).sin() * (yf * 0.15).cos();
+                    let obj = [0.25, 0.3, 0.55][c];
+                    let z: f64 = Distribution::<f64>::sample(&StandardNormal, &mut rng);
+                    let noise = 3.0 / 255.0 * z;
+                    img.set(c, y, x, ((if inside { obj } else { bg }) + noise) as f32);
+                }
+            }
+        }
+        ColourFrame::new(&img)
+    }
+
+    fn moving(n: usize) -> (f64, f64) {
+        (10.0 + 1.5 * n as f64, 36.0)
+    }
+
+    /// The model after frames 0 … n − 1, and frame n.
+    fn model_at(n: usize, centre: impl Fn(usize) -> (f64, f64) + Copy) -> (StillBackground, ColourFrame) {
+        let mut m = StillBackground::new(PlaceConfig::default()).expect("default settings");
+        for k in 0..n {
+            m.place(&frame(k, centre, 7), 0.0, &[]);
+        }
+        (m, frame(n, centre, 7))
+    }
+
+    #[test]
+    fn a_flow_centroid_off_its_object_is_placed_on_it() {
+        // The model full: the disc covers a pixel for 11 of its 30 frames.
+        let n = 34;
+        let (mut m, f) = model_at(n, moving);
+        let truth = moving(n);
+        // The flow's blob: 1.5× the disc's area, centred 3 px behind and 2 px above it.
+        let area = (1.5 * std::f64::consts::PI * R * R) as usize;
+        let out = m.place(&f, 0.3, &[((truth.0 - 3.0, truth.1 - 2.0), area)]);
+        match &out[0] {
+            Placement::Moved { to } => {
+                // From 3.6 px off to within 1.5 (the weight follows the contrast against a
+                // textured background, which leans the mode to the side of most contrast).
+                let err = (to.0 - truth.0).hypot(to.1 - truth.1);
+                assert!(err < 1.5, "placed at {to:?}, object at {truth:?}");
+            }
+            other => panic!("not placed: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_moving_camera_a_crowd_or_a_stopped_object_keeps_the_flow_centroid() {
+        let n = 14;
+        let area = (std::f64::consts::PI * R * R) as usize;
+        let truth = moving(n);
+        // The camera moves: nothing is placed, and the model starts over.
+        let (mut m, f) = model_at(n, moving);
+        let out = m.place(&f, 3.0, &[(truth, area)]);
+        assert!(matches!(&out[0], Placement::Kept(w) if w.contains("camera")), "{out:?}");
+        let out = m.place(&frame(n + 1, moving, 7), 0.0, &[(moving(n + 1), area)]);
+        assert!(matches!(&out[0], Placement::Kept(w) if w.contains("1 of 10")), "{out:?}");
+        // Two regions of one size 12 px apart: neither is placed.
+        let (mut m, f) = model_at(n, moving);
+        let out = m.place(&f, 0.0, &[(truth, area), ((truth.0 + 12.0, truth.1), area)]);
+        assert!(out.iter().all(|p| matches!(p, Placement::Kept(w) if w.contains("another region"))));
+        // A disc that never moved is background: no foreground confirms it.
+        let still = |_: usize| (48.0, 36.0);
+        let (mut m, f) = model_at(n, still);
+        let out = m.place(&f, 0.0, &[((50.0, 36.0), area)]);
+        assert!(matches!(&out[0], Placement::Kept(_)), "{out:?}");
+        // Too few frames yet.
+        let (mut m, f) = model_at(3, moving);
+        assert!(matches!(&m.place(&f, 0.0, &[(moving(3), area)])[0], Placement::Kept(_)));
+    }
+
+    #[test]
+    fn bad_settings_are_refused_by_name() {
+        for (cfg, name) in [
+            (PlaceConfig { window: 4, ..Default::default() }, "window"),
+            (PlaceConfig { frames: 0, ..Default::default() }, "frames"),
+            (PlaceConfig { min_frames: 40, ..Default::default() }, "min_frames"),
+            (PlaceConfig { k: f64::NAN, ..Default::default() }, "k"),
+            (PlaceConfig { iterations: 0, ..Default::default() }, "iterations"),
+        ] {
+            let e = StillBackground::new(cfg).err().expect("refused").to_string();
+            assert!(e.contains(name), "{e}");
+        }
+    }
+}
