@@ -359,3 +359,78 @@ fn a_global_bias_on_a_still_scene_is_not_the_background() {
         "without the check the biased fit should spoil the tracking: {r:?}"
     );
 }
+
+/// The exact flow moved by 4 px in a direction that changes every frame, and scaled by 0.6–1:
+/// the flow's region is the object's shape, but its centroid jitters around the object and its
+/// speed falls short, as an estimated flow's blob does on a small mover.
+fn displaced(exact: &Flow, n: usize) -> Flow {
+    let (h, w) = (exact.height() as i64, exact.width() as i64);
+    let a = 2.3 * n as f64;
+    let (dx, dy) = (
+        (4.0 * a.cos()).round() as i64,
+        (4.0 * a.sin()).round() as i64,
+    );
+    let gain = 0.8 + 0.2 * (1.7 * n as f64).sin() as f32;
+    let mut f = Flow::zeros(h as usize, w as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let (sx, sy) = ((x + dx).clamp(0, w - 1), (y + dy).clamp(0, h - 1));
+            let (u, v) = exact.get(sy as usize, sx as usize);
+            f.set(y as usize, x as usize, gain * u, gain * v);
+        }
+    }
+    f
+}
+
+#[test]
+fn the_still_background_places_a_jittering_flow_region_on_its_object() {
+    let d = tempfile::tempdir().unwrap();
+    let clip = d.path().join("clip");
+    let truth = render_line(&clip, 5151, [0.15, 0.35], [0.8, 0.6]);
+    let dir = clip.join("displaced");
+    for n in 0..FRAMES - 1 {
+        let exact = pins::io::read_flow(&clip.join("flows").join(format!("{n:05}.flo"))).unwrap();
+        pins::io::write_flo(&dir.join(format!("{n:05}.flo")), &displaced(&exact, n)).unwrap();
+    }
+    let frames = clip.join("frames");
+    let debug = d.path().join("debug");
+    let args = [
+        "--flows",
+        dir.to_str().unwrap(),
+        "--frames",
+        frames.to_str().unwrap(),
+        "--place",
+        "on",
+        // The displaced region is not where the frames changed.
+        "--no-photometric",
+        "--debug",
+        debug.to_str().unwrap(),
+    ];
+    let (r, _) = track(&args, &d.path().join("on"), &truth);
+    assert_eq!(r.objects.len(), 1, "{r:?}");
+    assert!(r.missed.is_empty() && r.id_switches == 0, "{r:?}");
+    // Where a region was placed, the placed centre is nearer the object than the flow's.
+    let object = &truth.objects[0].centroids;
+    let (mut n, mut flow_err, mut placed_err) = (0, 0.0, 0.0);
+    let lines = std::fs::read_to_string(debug.join("regions.jsonl")).unwrap();
+    for line in lines.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let f = v["frame"].as_u64().unwrap() as usize;
+        for reg in v["regions"].as_array().unwrap() {
+            let (Some(c), Some(p)) = (reg["centroid"].as_array(), reg["placed"].as_array()) else {
+                continue;
+            };
+            let at = |a: &Vec<serde_json::Value>| (a[0].as_f64().unwrap(), a[1].as_f64().unwrap());
+            let ((cx, cy), (px, py), t) = (at(c), at(p), object[f]);
+            flow_err += (cx - t[0]).hypot(cy - t[1]);
+            placed_err += (px - t[0]).hypot(py - t[1]);
+            n += 1;
+        }
+    }
+    assert!(n >= 4, "only {n} regions placed");
+    let (flow_err, placed_err) = (flow_err / n as f64, placed_err / n as f64);
+    assert!(
+        placed_err < 0.75 * flow_err,
+        "mean distance to the object over {n} placed regions: placed {placed_err:.2} px, flow {flow_err:.2} px"
+    );
+}

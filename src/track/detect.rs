@@ -222,7 +222,12 @@ impl FrameDetection {
             .map(|c| (c.region.centroid, c.region.pixels))
             .collect();
         let placed = model.place(frame, camera, &wanted);
-        for (c, p) in self.candidates.iter_mut().filter(|c| c.accepted).zip(placed) {
+        for (c, p) in self
+            .candidates
+            .iter_mut()
+            .filter(|c| c.accepted)
+            .zip(placed)
+        {
             if let Placement::Moved { to } = p {
                 c.region.placed = Some(to);
             }

@@ -262,7 +262,12 @@ struct Foreground<'a> {
 }
 
 impl<'a> Foreground<'a> {
-    fn new(frames: &'a VecDeque<ColourFrame>, current: &'a ColourFrame, window: usize, k: f64) -> Self {
+    fn new(
+        frames: &'a VecDeque<ColourFrame>,
+        current: &'a ColourFrame,
+        window: usize,
+        k: f64,
+    ) -> Self {
         let (w, h) = (current.width, current.height);
         let mut fg = Self {
             frames,
@@ -329,14 +334,25 @@ impl<'a> Foreground<'a> {
 
     /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`;
     /// the new centre, or why it is refused.
-    fn place(&self, start: (f64, f64), area: usize, cfg: &PlaceConfig) -> std::result::Result<(f64, f64), String> {
+    fn place(
+        &self,
+        start: (f64, f64),
+        area: usize,
+        cfg: &PlaceConfig,
+    ) -> std::result::Result<(f64, f64), String> {
         let (w, h) = (self.current.width as f64, self.current.height as f64);
         let radius = (area as f64 / std::f64::consts::PI).sqrt().max(2.0);
         let mut p = start;
         let mut cover = 0usize;
         for _ in 0..cfg.iterations {
-            let (x0, x1) = ((p.0 - radius).ceil().max(0.0), (p.0 + radius).floor().min(w - 1.0));
-            let (y0, y1) = ((p.1 - radius).ceil().max(0.0), (p.1 + radius).floor().min(h - 1.0));
+            let (x0, x1) = (
+                (p.0 - radius).ceil().max(0.0),
+                (p.0 + radius).floor().min(w - 1.0),
+            );
+            let (y0, y1) = (
+                (p.1 - radius).ceil().max(0.0),
+                (p.1 + radius).floor().min(h - 1.0),
+            );
             let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
             cover = 0;
             if x0 <= x1 && y0 <= y1 {
@@ -422,7 +438,10 @@ mod tests {
     }
 
     /// The model after frames 0 … n − 1, and frame n.
-    fn model_at(n: usize, centre: impl Fn(usize) -> (f64, f64) + Copy) -> (StillBackground, ColourFrame) {
+    fn model_at(
+        n: usize,
+        centre: impl Fn(usize) -> (f64, f64) + Copy,
+    ) -> (StillBackground, ColourFrame) {
         let mut m = StillBackground::new(PlaceConfig::default()).expect("default settings");
         for k in 0..n {
             m.place(&frame(k, centre, 7), 0.0, &[]);
@@ -458,13 +477,22 @@ mod tests {
         // The camera moves: nothing is placed, and the model starts over.
         let (mut m, f) = model_at(n, moving);
         let out = m.place(&f, 3.0, &[(truth, area)]);
-        assert!(matches!(&out[0], Placement::Kept(w) if w.contains("camera")), "{out:?}");
+        assert!(
+            matches!(&out[0], Placement::Kept(w) if w.contains("camera")),
+            "{out:?}"
+        );
         let out = m.place(&frame(n + 1, moving, 7), 0.0, &[(moving(n + 1), area)]);
-        assert!(matches!(&out[0], Placement::Kept(w) if w.contains("1 of 10")), "{out:?}");
+        assert!(
+            matches!(&out[0], Placement::Kept(w) if w.contains("1 of 10")),
+            "{out:?}"
+        );
         // Two regions of one size 12 px apart: neither is placed.
         let (mut m, f) = model_at(n, moving);
         let out = m.place(&f, 0.0, &[(truth, area), ((truth.0 + 12.0, truth.1), area)]);
-        assert!(out.iter().all(|p| matches!(p, Placement::Kept(w) if w.contains("another region"))));
+        assert!(
+            out.iter()
+                .all(|p| matches!(p, Placement::Kept(w) if w.contains("another region")))
+        );
         // A disc that never moved is background: no foreground confirms it.
         let still = |_: usize| (48.0, 36.0);
         let (mut m, f) = model_at(n, still);
@@ -472,19 +500,55 @@ mod tests {
         assert!(matches!(&out[0], Placement::Kept(_)), "{out:?}");
         // Too few frames yet.
         let (mut m, f) = model_at(3, moving);
-        assert!(matches!(&m.place(&f, 0.0, &[(moving(3), area)])[0], Placement::Kept(_)));
+        assert!(matches!(
+            &m.place(&f, 0.0, &[(moving(3), area)])[0],
+            Placement::Kept(_)
+        ));
     }
 
     #[test]
     fn bad_settings_are_refused_by_name() {
         for (cfg, name) in [
-            (PlaceConfig { window: 4, ..Default::default() }, "window"),
-            (PlaceConfig { frames: 0, ..Default::default() }, "frames"),
-            (PlaceConfig { min_frames: 40, ..Default::default() }, "min_frames"),
-            (PlaceConfig { k: f64::NAN, ..Default::default() }, "k"),
-            (PlaceConfig { iterations: 0, ..Default::default() }, "iterations"),
+            (
+                PlaceConfig {
+                    window: 4,
+                    ..Default::default()
+                },
+                "window",
+            ),
+            (
+                PlaceConfig {
+                    frames: 0,
+                    ..Default::default()
+                },
+                "frames",
+            ),
+            (
+                PlaceConfig {
+                    min_frames: 40,
+                    ..Default::default()
+                },
+                "min_frames",
+            ),
+            (
+                PlaceConfig {
+                    k: f64::NAN,
+                    ..Default::default()
+                },
+                "k",
+            ),
+            (
+                PlaceConfig {
+                    iterations: 0,
+                    ..Default::default()
+                },
+                "iterations",
+            ),
         ] {
-            let e = StillBackground::new(cfg).err().expect("refused").to_string();
+            let e = StillBackground::new(cfg)
+                .err()
+                .expect("refused")
+                .to_string();
             assert!(e.contains(name), "{e}");
         }
     }
