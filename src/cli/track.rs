@@ -81,6 +81,11 @@ struct RunArgs {
     /// Kalman measurement noise of a region's speed and direction.
     #[arg(long)]
     motion_r: Option<f64>,
+    /// Samples of the speed and direction fits: the region's flow (the paper's) or the
+    /// position filter's velocity, which the placed centroids correct where the flow
+    /// underestimates a small mover.
+    #[arg(long, value_enum, default_value = "flow")]
+    motion_source: MotionSourceArg,
     /// Prediction horizons in frames.
     #[arg(long, value_delimiter = ',', default_value = "1,15,30")]
     horizons: Vec<usize>,
@@ -179,6 +184,12 @@ enum AutoSwitch {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
+enum MotionSourceArg {
+    Flow,
+    Filter,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
 enum Method {
     Poly,
     ConstantVelocity,
@@ -252,6 +263,10 @@ fn run(a: RunArgs) -> Result<()> {
             order: a.order,
             position_r: a.position_r.unwrap_or(MtpConfig::default().position_r),
             motion_r: a.motion_r.unwrap_or(MtpConfig::default().motion_r),
+            motion_source: match a.motion_source {
+                MotionSourceArg::Flow => mtp::MotionSource::Flow,
+                MotionSourceArg::Filter => mtp::MotionSource::Filter,
+            },
             ..MtpConfig::default()
         },
         confirm: a.confirm,
