@@ -81,10 +81,11 @@ struct RunArgs {
     /// Kalman measurement noise of a region's speed and direction.
     #[arg(long)]
     motion_r: Option<f64>,
-    /// Samples of the speed and direction fits: the region's flow (the paper's) or the
-    /// position filter's velocity, which the placed centroids correct where the flow
-    /// underestimates a small mover.
-    #[arg(long, value_enum, default_value = "flow")]
+    /// Samples of the speed and direction fits: the region's flow (the paper's), the
+    /// position filter's velocity (which placed centroids correct where the flow
+    /// underestimates a small mover), or `auto`: the filter's where the region was placed on
+    /// the frame (--place), the flow's elsewhere.
+    #[arg(long, value_enum, default_value = "auto")]
     motion_source: MotionSourceArg,
     /// Prediction horizons in frames.
     #[arg(long, value_delimiter = ',', default_value = "1,15,30")]
@@ -185,6 +186,7 @@ enum AutoSwitch {
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum MotionSourceArg {
+    Auto,
     Flow,
     Filter,
 }
@@ -264,6 +266,7 @@ fn run(a: RunArgs) -> Result<()> {
             position_r: a.position_r.unwrap_or(MtpConfig::default().position_r),
             motion_r: a.motion_r.unwrap_or(MtpConfig::default().motion_r),
             motion_source: match a.motion_source {
+                MotionSourceArg::Auto => mtp::MotionSource::Auto,
                 MotionSourceArg::Flow => mtp::MotionSource::Flow,
                 MotionSourceArg::Filter => mtp::MotionSource::Filter,
             },

@@ -45,8 +45,11 @@ pub struct MtpConfig {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MotionSource {
-    /// The region's flow (the paper's).
+    /// The filter's velocity where the region was placed on the frame (`Region::placed`),
+    /// the region's flow elsewhere: an exact flow's samples stay the paper's.
     #[default]
+    Auto,
+    /// The region's flow (the paper's).
     Flow,
     /// The position filter's velocity, which fuses the centroids with the flow: where the
     /// centroids are the objects' own (placed on the frame) and the flow underestimates a
@@ -65,7 +68,7 @@ impl Default for MtpConfig {
             motion_q: 0.05,
             motion_r: 0.25,
             placed_motion_r: 1.0,
-            motion_source: MotionSource::Flow,
+            motion_source: MotionSource::Auto,
         }
     }
 }
@@ -164,9 +167,14 @@ impl Mtp {
                     self.x.update_velocity(r.speed * d.cos(), vr);
                     self.y.update_velocity(r.speed * d.sin(), vr);
                 }
-                let (speed, direction) = match self.config.motion_source {
-                    MotionSource::Flow => (r.speed, r.direction),
-                    MotionSource::Filter => {
+                let filter = match self.config.motion_source {
+                    MotionSource::Auto => r.placed.is_some(),
+                    MotionSource::Flow => false,
+                    MotionSource::Filter => true,
+                };
+                let (speed, direction) = match filter {
+                    false => (r.speed, r.direction),
+                    true => {
                         let (vx, vy) = self.velocity();
                         let s = vx.hypot(vy);
                         (s, (s > 1e-9).then(|| vy.atan2(vx)))
@@ -243,7 +251,7 @@ mod tests {
             let mut mtp = Mtp::new(MtpConfig {
                 motion_source: source,
                 position_r: 1.0,
-                motion_r: 4.0,
+                placed_motion_r: 4.0,
                 ..MtpConfig::default()
             })
             .unwrap();
@@ -256,7 +264,7 @@ mod tests {
             let e = last.unwrap();
             (e.path[14].0 - (10.0 + 5.0 * 54.0)).abs()
         };
-        let (flow, filter) = (run(MotionSource::Flow), run(MotionSource::Filter));
+        let (flow, filter) = (run(MotionSource::Flow), run(MotionSource::Auto));
         assert!(
             filter < 10.0 && filter < 0.5 * flow,
             "15 frames ahead: filter off by {filter:.1} px, flow by {flow:.1}"
