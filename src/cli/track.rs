@@ -282,6 +282,9 @@ fn run(a: RunArgs) -> Result<()> {
     if a.confirm == 0 {
         bail!("--confirm must be >= 1");
     }
+    if !(1..=255).contains(&a.place_frames) {
+        bail!("--place-frames must be 1..=255, got {}", a.place_frames);
+    }
     let detect = DetectConfig {
         background: match a.background {
             Background::None => BackgroundModel::None,

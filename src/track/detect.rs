@@ -204,9 +204,7 @@ impl FrameDetection {
             .map(|c| c.region.clone())
             .collect()
     }
-}
 
-impl FrameDetection {
     /// Places the accepted regions on frame n (`frame`, its colour samples) with the still
     /// background, which then keeps the frame. The camera counts as still when the frames did
     /// not support the fitted background motion or when that motion is small.

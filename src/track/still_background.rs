@@ -78,6 +78,10 @@ pub struct PlaceConfig {
     /// ... or when fewer foreground pixels than this share of the region's area lie in the
     /// final disc (the object stopped and joined the background).
     pub min_cover: f64,
+    /// A region is not placed when another of at least a quarter of its area lies within
+    /// this many times the sum of their equivalent radii (the foreground near it may be the
+    /// other's: a crossing, or a fragment beside its object).
+    pub crowd: f64,
     /// Above this background motion (px/frame, its largest over the frame), the camera moves:
     /// the model starts over. Not lower: an estimated flow's global bias on a still scene
     /// reaches 0.5–0.8 px at the corners, and a sub-pixel warp's smoothing lets the frames
@@ -96,6 +100,7 @@ impl Default for PlaceConfig {
             iterations: 5,
             max_shift: 0.5,
             min_cover: 0.25,
+            crowd: 2.5,
             max_camera_motion: 2.0,
         }
     }
@@ -134,6 +139,7 @@ impl PlaceConfig {
             ("k", self.k),
             ("max_shift", self.max_shift),
             ("min_cover", self.min_cover),
+            ("crowd", self.crowd),
             ("max_camera_motion", self.max_camera_motion),
         ] {
             if !(v.is_finite() && v >= 0.0) {
@@ -209,16 +215,21 @@ impl StillBackground {
                 cfg.min_frames
             ))
         } else {
-            let fg = Foreground::new(&self.frames, frame, cfg.window, cfg.k);
+            // The foreground (its noise floor alone is a thousand medians) only for a frame
+            // with a region to place.
+            let mut fg = None;
             regions
                 .iter()
                 .enumerate()
                 .map(|(i, &(c, area))| {
-                    if let Some(d) = crowded(regions, i) {
+                    if let Some(d) = crowded(regions, i, cfg.crowd) {
                         return Placement::Kept(format!(
                             "another region {d:.0} px away shares its foreground"
                         ));
                     }
+                    let fg = fg.get_or_insert_with(|| {
+                        Foreground::new(&self.frames, frame, cfg.window, cfg.k)
+                    });
                     match fg.place(c, area, cfg) {
                         Ok(to) => Placement::Moved { to },
                         Err(why) => Placement::Kept(why),
@@ -235,9 +246,8 @@ impl StillBackground {
 }
 
 /// The distance to another region, when one of at least a quarter of region `i`'s area lies
-/// within 1.5 × the sum of their equivalent radii: the foreground near `i` may be its, so
-/// neither is placed (a crossing, or a fragment beside its object).
-fn crowded(regions: &[((f64, f64), usize)], i: usize) -> Option<f64> {
+/// within `factor` × the sum of their equivalent radii (`PlaceConfig::crowd`).
+fn crowded(regions: &[((f64, f64), usize)], i: usize, factor: f64) -> Option<f64> {
     let radius = |a: usize| (a as f64 / std::f64::consts::PI).sqrt();
     let ((x, y), a) = regions[i];
     regions
@@ -245,7 +255,7 @@ fn crowded(regions: &[((f64, f64), usize)], i: usize) -> Option<f64> {
         .enumerate()
         .filter(|&(j, &(_, b))| j != i && 4 * b >= a)
         .map(|(_, &((u, v), b))| ((u - x).hypot(v - y), b))
-        .filter(|&(d, b)| d < 2.5 * (radius(a) + radius(b)))
+        .filter(|&(d, b)| d < factor * (radius(a) + radius(b)))
         .map(|(d, _)| d)
         .min_by(|p, q| p.total_cmp(q))
 }
