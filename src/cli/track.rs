@@ -157,6 +157,15 @@ struct RunArgs {
     /// of the object: the track stays alive but coasts (0 turns this off).
     #[arg(long, default_value_t = 0.35)]
     partial_area_ratio: f64,
+    /// Appearance cue (with frames): a region whose colour lies more than this many standard
+    /// deviations from a track's running colour is not matched to it (`inf` turns the gate
+    /// off).
+    #[arg(long, default_value_t = 6.0)]
+    appearance_k: f64,
+    /// Appearance cue: matching cost (px) per standard deviation of colour difference (0 turns
+    /// it off).
+    #[arg(long, default_value_t = 5.0)]
+    appearance_px: f64,
     /// Write every frame's regions, their verdicts and reasons to DIR/regions.jsonl.
     #[arg(long)]
     debug: Option<PathBuf>,
@@ -276,6 +285,8 @@ fn run(a: RunArgs) -> Result<()> {
         consistency_max_ratio: a.consistency_max_ratio,
         partial_area_ratio: a.partial_area_ratio,
         max_coast_reported: a.max_coast_reported,
+        appearance_k: a.appearance_k,
+        appearance_px: a.appearance_px,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;

@@ -68,6 +68,9 @@ impl LiveTracker {
         if let (Some(model), Some(pair)) = (self.placer.as_mut(), pair) {
             found.place(model, pair.first_colour());
         }
+        if let Some(pair) = pair {
+            found.colour(pair.first_colour());
+        }
         let dets = found.accepted();
         self.tracker.set_frame_size(flow.width(), flow.height());
         let out = self.tracker.step(frame, &dets, self.max_h)?;

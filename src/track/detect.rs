@@ -234,6 +234,19 @@ impl FrameDetection {
     }
 }
 
+impl FrameDetection {
+    /// Records each accepted region's mean colour in frame n (`frame`, its colour samples) over
+    /// a disc of half its equivalent radius (at least 2 px) at its centre, the placed one when
+    /// the still background placed it (`Region::colour`, the tracker's appearance cue).
+    pub fn colour(&mut self, frame: &ColourFrame) {
+        for c in self.candidates.iter_mut().filter(|c| c.accepted) {
+            let r = &mut c.region;
+            let radius = (0.5 * (r.pixels as f64 / std::f64::consts::PI).sqrt()).max(2.0);
+            r.colour = frame.mean_in_disc(r.placed.unwrap_or(r.centroid), radius);
+        }
+    }
+}
+
 /// Detects the moving regions of `flow` (frame n → n + 1); `frames` (n and n + 1) enable the
 /// photometric test. `threshold`, `noise_k` and `min_area` are the magnitude test's settings.
 pub fn detect(

@@ -232,6 +232,7 @@ mod tests {
 
     fn region(x: f64, y: f64, speed: f64, dir: Option<f64>) -> Region {
         Region {
+            colour: None,
             pixels: 50,
             centroid: (x, y),
             speed,

@@ -12,6 +12,7 @@ use std::collections::VecDeque;
 
 use serde::{Deserialize, Serialize};
 
+use super::appearance::Appearance;
 use super::hungarian::assign;
 use super::mtp::{Estimate, Mtp, MtpConfig};
 use super::roi::Region;
@@ -63,6 +64,15 @@ pub struct TrackerConfig {
     /// extrapolation that no measurement has checked for that long (SORT reports matched
     /// tracks only, i.e. 0 here).
     pub max_coast_reported: usize,
+    /// The appearance cue (`track::appearance`, with frames): a detection whose colour lies
+    /// more than `appearance_k` standard deviations from a track's running colour (each
+    /// channel's at least `appearance_floor` 8-bit levels) is not matched to it, and each
+    /// standard deviation adds `appearance_px` to the matching cost (px), so where two objects
+    /// meet, each track prefers its own. Infinite `appearance_k` and 0 `appearance_px` turn it
+    /// off.
+    pub appearance_k: f64,
+    pub appearance_floor: f64,
+    pub appearance_px: f64,
 }
 
 impl Default for TrackerConfig {
@@ -82,6 +92,9 @@ impl Default for TrackerConfig {
             partial_area_ratio: 0.35,
             area_window: 15,
             max_coast_reported: 0,
+            appearance_k: 6.0,
+            appearance_floor: 8.0,
+            appearance_px: 5.0,
         }
     }
 }
@@ -125,6 +138,8 @@ struct Track {
     centre: (f64, f64),
     /// The areas (pixels) of the last `area_window` whole detections.
     areas: VecDeque<usize>,
+    /// The object's colour, from its whole detections.
+    appearance: Option<Appearance>,
 }
 
 /// What became of one detection in the last frame (for the debug output).
@@ -196,6 +211,8 @@ impl Tracker {
             ("velocity_gate_px", config.velocity_gate_px),
             ("velocity_gate_rel", config.velocity_gate_rel),
             ("birth_exclusion_px", config.birth_exclusion_px),
+            ("appearance_k", config.appearance_k),
+            ("appearance_px", config.appearance_px),
         ] {
             if v.is_nan() || v < 0.0 {
                 return Err(Error::invalid(
@@ -203,6 +220,12 @@ impl Tracker {
                     format!("must be >= 0 (inf turns the test off), got {v}"),
                 ));
             }
+        }
+        if !(config.appearance_floor.is_finite() && config.appearance_floor > 0.0) {
+            return Err(Error::invalid(
+                "tracker.appearance_floor",
+                format!("must be finite and > 0, got {}", config.appearance_floor),
+            ));
         }
         Ok(Self {
             config,
@@ -229,6 +252,13 @@ impl Tracker {
         detections: &[Region],
         horizon: usize,
     ) -> Result<Vec<TrackEstimate>> {
+        let (k, floor) = (self.config.appearance_k, self.config.appearance_floor);
+        let lambda = self.config.appearance_px;
+        let looks = |t: &Track, d: &Region| {
+            t.appearance
+                .as_ref()
+                .is_none_or(|a| a.admits(d.colour, k, floor))
+        };
         let cost: Vec<Vec<f64>> = self
             .tracks
             .iter()
@@ -245,8 +275,11 @@ impl Tracker {
                         .sqrt();
                         let dv = (d.mean_flow.0 - v.0).hypot(d.mean_flow.1 - v.1);
                         // A NaN velocity difference (unknown) does not close the gate.
-                        if dist <= gate && (dv.is_nan() || dv <= vgate) {
-                            dist
+                        if dist <= gate && (dv.is_nan() || dv <= vgate) && looks(t, d) {
+                            dist + lambda
+                                * t.appearance
+                                    .as_ref()
+                                    .map_or(0.0, |a| a.cost(d.colour, floor))
                         } else {
                             f64::INFINITY
                         }
@@ -271,13 +304,14 @@ impl Tracker {
             let second: Vec<Vec<f64>> = orphans
                 .iter()
                 .map(|&i| {
-                    let p = self.tracks[i].predicted;
+                    let track = &self.tracks[i];
+                    let p = track.predicted;
                     detections
                         .iter()
                         .zip(&taken)
                         .map(|(d, &t)| {
                             let dist = (d.centroid.0 - p.0).hypot(d.centroid.1 - p.1);
-                            if !t && dist <= exclusion {
+                            if !t && dist <= exclusion && looks(track, d) {
                                 dist
                             } else {
                                 f64::INFINITY
@@ -342,6 +376,12 @@ impl Tracker {
             });
             let e = t.mtp.step(frame, det.filter(|_| !partial), horizon)?;
             if let Some(d) = det.filter(|_| !partial) {
+                if let Some(c) = d.colour {
+                    match t.appearance.as_mut() {
+                        Some(a) => a.update(c),
+                        None => t.appearance = Some(Appearance::new(c)),
+                    }
+                }
                 t.areas.push_back(d.pixels);
                 while t.areas.len() > self.config.area_window.max(1) {
                     t.areas.pop_front();
@@ -453,6 +493,7 @@ impl Tracker {
                 predicted: e.path[0],
                 centre: e.centroid,
                 areas: VecDeque::from([d.pixels]),
+                appearance: d.colour.map(Appearance::new),
             };
             self.next_key += 1;
             // With a window of one frame there is nothing to compare: confirmed at once.
@@ -490,6 +531,7 @@ mod tests {
 
     fn det(x: f64, y: f64, vx: f64, vy: f64) -> Region {
         Region {
+            colour: None,
             pixels: 40,
             centroid: (x, y),
             speed: vx.abs(),
@@ -498,6 +540,60 @@ mod tests {
             mean_flow: (vx, vy),
             placed: None,
         }
+    }
+
+    /// Object A (red) moves right and is missed for frames 20–23; object B (green) enters at
+    /// frame 20 just beside A's predicted path, moving the same way. Without the appearance
+    /// cue, A's coasting track takes B's first detection and follows B (an ID switch); with
+    /// it, B starts its own track and A's ID waits for A.
+    #[test]
+    fn a_coasting_track_does_not_take_an_object_of_another_colour() {
+        let red = |n: usize| [200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
+        let green = |n: usize| [40.0, 190.0 + (n % 2) as f64, 60.0];
+        let run = |config: TrackerConfig| {
+            let mut tr = Tracker::new(config).unwrap();
+            // The ID nearest A and nearest B in each frame after B entered.
+            let mut on_a = Vec::new();
+            let mut on_b = Vec::new();
+            for n in 0..40 {
+                let (ax, bx) = (20.0 + 3.0 * n as f64, 20.0 + 3.0 * n as f64 + 6.0);
+                let mut dets = Vec::new();
+                if !(20..24).contains(&n) {
+                    dets.push(Region {
+                        colour: Some(red(n)),
+                        ..det(ax, 50.0, 3.0, 0.0)
+                    });
+                }
+                if n >= 20 {
+                    dets.push(Region {
+                        colour: Some(green(n)),
+                        ..det(bx, 62.0, 3.0, 0.0)
+                    });
+                }
+                let out = tr.step(n, &dets, 1).unwrap();
+                for t in &out {
+                    let (x, y) = t.estimate.centroid;
+                    if (x - ax).hypot(y - 50.0) < 4.0 {
+                        on_a.push((n, t.id));
+                    }
+                    if n >= 20 && (x - bx).hypot(y - 62.0) < 4.0 {
+                        on_b.push((n, t.id));
+                    }
+                }
+            }
+            (on_a, on_b)
+        };
+        let (on_a, on_b) = run(TrackerConfig::default());
+        assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+        assert!(on_a.iter().any(|&(n, _)| n >= 30), "A taken back: {on_a:?}");
+        assert!(on_b.iter().all(|&(_, id)| id != 1), "B: {on_b:?}");
+        // Without the cue A's ID follows B.
+        let (_, on_b) = run(TrackerConfig {
+            appearance_k: f64::INFINITY,
+            appearance_px: 0.0,
+            ..TrackerConfig::default()
+        });
+        assert!(on_b.iter().any(|&(_, id)| id == 1), "B: {on_b:?}");
     }
 
     #[test]

@@ -25,6 +25,10 @@ pub struct Region {
     /// (`track::still_background`): the trajectory filter measures this instead of the
     /// flow's centroid; association and confirmation keep the flow's.
     pub placed: Option<(f64, f64)>,
+    /// The object's mean colour in frame n (8-bit levels, R, G, B; a grey frame's level three
+    /// times) over a disc at its centre, when the frames were given (`FrameDetection::colour`):
+    /// the tracker's appearance cue.
+    pub colour: Option<[f64; 3]>,
 }
 
 /// All regions with at least `min_area` pixels whose |flow| > `threshold`, largest first.
@@ -167,6 +171,7 @@ impl Region {
         let nf = pixels.len().max(1) as f64;
         let resultant = (cx * cx + cy * cy).sqrt() / nf;
         Region {
+            colour: None,
             pixels: pixels.len(),
             centroid: (sx / nf, sy / nf),
             speed: ss / nf,

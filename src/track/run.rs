@@ -151,6 +151,9 @@ pub struct DebugRegion {
     /// What the still background did with the centroid (accepted regions, when it ran).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub placement: Option<String>,
+    /// The mean colour at its centre (R, G, B, 8-bit levels; the tracker's appearance cue).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub colour: Option<[f64; 3]>,
     pub mean_flow: [f64; 2],
     pub speed: f64,
     /// Mean warp residual with the region's flow and with the background's motion, and their
@@ -286,6 +289,9 @@ pub fn track_sequence(
         if let (Some(model), Some(pair)) = (placer.as_mut(), step.frames.as_ref()) {
             found.place(model, pair.first_colour());
         }
+        if let Some(pair) = step.frames.as_ref() {
+            found.colour(pair.first_colour());
+        }
         let dets = found.accepted();
         tracker.set_frame_size(s.1, s.0);
         for t in tracker.step(frame, &dets, max_h)? {
@@ -335,6 +341,7 @@ pub fn track_sequence(
                             centroid: [r.centroid.0, r.centroid.1],
                             placed: r.placed.map(|p| [p.0, p.1]),
                             placement: c.placement.as_ref().map(|p| p.describe()),
+                            colour: r.colour,
                             mean_flow: [r.mean_flow.0, r.mean_flow.1],
                             speed: r.speed,
                             residual_flow: c.residuals.map(|x| x.0),

@@ -48,6 +48,41 @@ impl ColourFrame {
         }
     }
 
+    /// The mean of each channel over the pixels within `radius` of `centre` (R, G, B; a grey
+    /// frame's level three times); `None` when no pixel lies there.
+    pub fn mean_in_disc(&self, centre: (f64, f64), radius: f64) -> Option<[f64; 3]> {
+        let (w, h) = (self.width as f64, self.height as f64);
+        if !(centre.0.is_finite() && centre.1.is_finite() && radius.is_finite()) {
+            return None;
+        }
+        let (x0, x1) = (
+            (centre.0 - radius).ceil().max(0.0),
+            (centre.0 + radius).floor().min(w - 1.0),
+        );
+        let (y0, y1) = (
+            (centre.1 - radius).ceil().max(0.0),
+            (centre.1 + radius).floor().min(h - 1.0),
+        );
+        if x0 > x1 || y0 > y1 {
+            return None;
+        }
+        let mut sum = [0.0f64; 3];
+        let mut n = 0usize;
+        for y in y0 as usize..=y1 as usize {
+            for x in x0 as usize..=x1 as usize {
+                if (x as f64 - centre.0).hypot(y as f64 - centre.1) > radius {
+                    continue;
+                }
+                let p = y * self.width + x;
+                for (c, s) in sum.iter_mut().enumerate() {
+                    *s += self.plane(c.min(self.channels - 1))[p] as f64;
+                }
+                n += 1;
+            }
+        }
+        (n > 0).then(|| sum.map(|s| s / n as f64))
+    }
+
     fn plane(&self, c: usize) -> &[u8] {
         let n = self.width * self.height;
         &self.data[c * n..(c + 1) * n]
