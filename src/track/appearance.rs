@@ -1,4 +1,5 @@
-//! The tracker's appearance cue (as DeepSORT's, with the simplest descriptor): each track
+//! The tracker's appearance cue (Note S13's many objects; as DeepSORT's, with the simplest
+//! descriptor): each track
 //! keeps the running mean and variance of its object's colour in the frame
 //! (`Region::colour`), and a detection whose colour lies too many standard deviations from
 //! it is not the track's object. Two small discs that cross have the same speed and place for
@@ -76,7 +77,7 @@ mod tests {
     #[test]
     fn a_different_colour_is_refused_and_the_same_one_with_its_drift_is_not() {
         let mut a = Appearance::new([90.0, 20.0, 95.0]);
-        // Before three samples everything passes.
+        // Before five samples everything passes.
         assert!(a.admits(Some([90.0, 62.0, 109.0]), 4.0, 4.0));
         for k in 0..20 {
             let wobble = if k % 2 == 0 { 6.0 } else { -6.0 };

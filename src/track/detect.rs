@@ -205,6 +205,17 @@ impl FrameDetection {
             .collect()
     }
 
+    /// Records each accepted region's mean colour in frame n (`frame`, its colour samples) over
+    /// a disc of half its equivalent radius (at least 2 px) at its centre, the placed one when
+    /// the still background placed it (`Region::colour`, the tracker's appearance cue).
+    pub fn colour(&mut self, frame: &ColourFrame) {
+        for c in self.candidates.iter_mut().filter(|c| c.accepted) {
+            let r = &mut c.region;
+            let radius = (0.5 * (r.pixels as f64 / std::f64::consts::PI).sqrt()).max(2.0);
+            r.colour = frame.mean_in_disc(r.placed.unwrap_or(r.centroid), radius);
+        }
+    }
+
     /// Places the accepted regions on frame n (`frame`, its colour samples) with the still
     /// background, which then keeps the frame. The camera counts as still when the frames did
     /// not support the fitted background motion or when that motion is small.
@@ -230,19 +241,6 @@ impl FrameDetection {
                 c.region.placed = Some(to);
             }
             c.placement = Some(p);
-        }
-    }
-}
-
-impl FrameDetection {
-    /// Records each accepted region's mean colour in frame n (`frame`, its colour samples) over
-    /// a disc of half its equivalent radius (at least 2 px) at its centre, the placed one when
-    /// the still background placed it (`Region::colour`, the tracker's appearance cue).
-    pub fn colour(&mut self, frame: &ColourFrame) {
-        for c in self.candidates.iter_mut().filter(|c| c.accepted) {
-            let r = &mut c.region;
-            let radius = (0.5 * (r.pixels as f64 / std::f64::consts::PI).sqrt()).max(2.0);
-            r.colour = frame.mean_in_disc(r.placed.unwrap_or(r.centroid), radius);
         }
     }
 }

@@ -212,7 +212,6 @@ impl Tracker {
             ("velocity_gate_rel", config.velocity_gate_rel),
             ("birth_exclusion_px", config.birth_exclusion_px),
             ("appearance_k", config.appearance_k),
-            ("appearance_px", config.appearance_px),
         ] {
             if v.is_nan() || v < 0.0 {
                 return Err(Error::invalid(
@@ -225,6 +224,12 @@ impl Tracker {
             return Err(Error::invalid(
                 "tracker.appearance_floor",
                 format!("must be finite and > 0, got {}", config.appearance_floor),
+            ));
+        }
+        if !(config.appearance_px.is_finite() && config.appearance_px >= 0.0) {
+            return Err(Error::invalid(
+                "tracker.appearance_px",
+                format!("must be finite and >= 0, got {}", config.appearance_px),
             ));
         }
         Ok(Self {

@@ -478,6 +478,18 @@ mod tests {
         ColourFrame::new(&img)
     }
 
+    #[test]
+    fn the_mean_colour_of_a_disc_is_the_object_s_and_none_outside_the_frame() {
+        let f = frame(0, |_| (40.0, 30.0), 3);
+        // The bluish disc [0.25, 0.3, 0.55] under σ = 3 levels of noise.
+        let m = f.mean_in_disc((40.0, 30.0), 4.0).expect("inside");
+        for (got, want) in m.iter().zip([0.25, 0.3, 0.55]) {
+            assert!((got - want * 255.0).abs() < 2.0, "{m:?}");
+        }
+        assert!(f.mean_in_disc((-10.0, -10.0), 3.0).is_none());
+        assert!(f.mean_in_disc((f64::NAN, 3.0), 3.0).is_none());
+    }
+
     fn moving(n: usize) -> (f64, f64) {
         (10.0 + 1.5 * n as f64, 36.0)
     }
