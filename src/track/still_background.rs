@@ -51,34 +51,14 @@ impl ColourFrame {
     /// The mean of each channel over the pixels within `radius` of `centre` (R, G, B; a grey
     /// frame's level three times); `None` when no pixel lies there.
     pub fn mean_in_disc(&self, centre: (f64, f64), radius: f64) -> Option<[f64; 3]> {
-        let (w, h) = (self.width as f64, self.height as f64);
-        if !(centre.0.is_finite() && centre.1.is_finite() && radius.is_finite()) {
-            return None;
-        }
-        let (x0, x1) = (
-            (centre.0 - radius).ceil().max(0.0),
-            (centre.0 + radius).floor().min(w - 1.0),
-        );
-        let (y0, y1) = (
-            (centre.1 - radius).ceil().max(0.0),
-            (centre.1 + radius).floor().min(h - 1.0),
-        );
-        if x0 > x1 || y0 > y1 {
-            return None;
-        }
         let mut sum = [0.0f64; 3];
         let mut n = 0usize;
-        for y in y0 as usize..=y1 as usize {
-            for x in x0 as usize..=x1 as usize {
-                if (x as f64 - centre.0).hypot(y as f64 - centre.1) > radius {
-                    continue;
-                }
-                let p = y * self.width + x;
-                for (c, s) in sum.iter_mut().enumerate() {
-                    *s += self.plane(c.min(self.channels - 1))[p] as f64;
-                }
-                n += 1;
+        for (x, y) in disc(centre, radius, self.width, self.height) {
+            let p = y * self.width + x;
+            for (c, s) in sum.iter_mut().enumerate() {
+                *s += self.plane(c.min(self.channels - 1))[p] as f64;
             }
+            n += 1;
         }
         (n > 0).then(|| sum.map(|s| s / n as f64))
     }
@@ -385,35 +365,20 @@ impl<'a> Foreground<'a> {
         area: usize,
         cfg: &PlaceConfig,
     ) -> std::result::Result<(f64, f64), String> {
-        let (w, h) = (self.current.width as f64, self.current.height as f64);
+        let (w, h) = (self.current.width, self.current.height);
         let radius = (area as f64 / std::f64::consts::PI).sqrt().max(2.0);
         let mut p = start;
         let mut cover = 0usize;
         for _ in 0..cfg.iterations {
-            let (x0, x1) = (
-                (p.0 - radius).ceil().max(0.0),
-                (p.0 + radius).floor().min(w - 1.0),
-            );
-            let (y0, y1) = (
-                (p.1 - radius).ceil().max(0.0),
-                (p.1 + radius).floor().min(h - 1.0),
-            );
             let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
             cover = 0;
-            if x0 <= x1 && y0 <= y1 {
-                for y in y0 as usize..=y1 as usize {
-                    for x in x0 as usize..=x1 as usize {
-                        if (x as f64 - p.0).hypot(y as f64 - p.1) > radius {
-                            continue;
-                        }
-                        let wt = self.d(x, y) - self.level;
-                        if wt > 0.0 {
-                            sw += wt;
-                            sx += wt * x as f64;
-                            sy += wt * y as f64;
-                            cover += 1;
-                        }
-                    }
+            for (x, y) in disc(p, radius, w, h) {
+                let wt = self.d(x, y) - self.level;
+                if wt > 0.0 {
+                    sw += wt;
+                    sx += wt * x as f64;
+                    sy += wt * y as f64;
+                    cover += 1;
                 }
             }
             if sw <= 0.0 {
@@ -440,6 +405,28 @@ impl<'a> Foreground<'a> {
         }
         Ok(p)
     }
+}
+
+/// The pixels (x, y) of a `w` × `h` frame within `radius` of `centre`; none for a
+/// non-finite centre or radius.
+fn disc(
+    centre: (f64, f64),
+    radius: f64,
+    w: usize,
+    h: usize,
+) -> impl Iterator<Item = (usize, usize)> {
+    let ok = centre.0.is_finite() && centre.1.is_finite() && radius.is_finite() && w * h > 0;
+    let span = |c: f64, n: usize| {
+        let (lo, hi) = ((c - radius).ceil().max(0.0), (c + radius).floor());
+        if ok && lo <= hi && lo <= (n - 1) as f64 {
+            lo as usize..(hi.min((n - 1) as f64) as usize + 1)
+        } else {
+            0..0
+        }
+    };
+    let (xs, ys) = (span(centre.0, w), span(centre.1, h));
+    ys.flat_map(move |y| xs.clone().map(move |x| (x, y)))
+        .filter(move |&(x, y)| (x as f64 - centre.0).hypot(y as f64 - centre.1) <= radius)
 }
 
 fn median(v: &mut [f64]) -> f64 {
