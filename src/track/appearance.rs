@@ -63,10 +63,7 @@ impl Appearance {
     /// Whether `colour` may be this object's: always, until `MIN_SAMPLES` observations, or
     /// without a colour; otherwise within `k` of `distance`.
     pub fn admits(&self, colour: Option<[f64; 3]>, k: f64, floor: f64) -> bool {
-        match colour {
-            Some(c) if self.samples >= MIN_SAMPLES => self.distance(c, floor) <= k,
-            _ => true,
-        }
+        self.cost(colour, floor) <= k
     }
 }
 
