@@ -5,6 +5,7 @@ pub mod clip;
 pub mod config;
 pub mod log;
 pub mod param_ids;
+pub mod prefetch;
 pub mod resume;
 pub mod save;
 pub mod schedule;

@@ -17,6 +17,7 @@ use serde::Serialize;
 use super::checkpoint;
 use super::config::TrainConfig;
 use super::log::LogRow;
+use super::prefetch::Prefetch;
 use super::schedule::one_cycle;
 use super::{resume, save, setup, step, validate};
 use crate::error::{Error, Result};
@@ -95,10 +96,11 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     let stop = opts
         .stop_after
         .map_or(config.steps, |n| (start + n).min(config.steps));
+    let mut batches = Prefetch::new(&config, &train_set, step, stop, Prefetch::default_depth());
     while step < stop {
         let t0 = Instant::now();
         let lr = one_cycle(step, config.steps, config.lr, config.pct_start);
-        let examples = step::examples(&config, &train_set, step)?;
+        let examples = batches.take(step)?;
         let (model, stats) = match step::take_parallel(
             run.model,
             &mut run.optim,
