@@ -6,10 +6,11 @@
 #
 # PINS is a pins binary built with `--features wgpu`; OUT receives the checks (checks.txt: the
 # GPU's timings against the CPU's and the flow of the shipped weights on both devices), the
-# run's log.csv, curves.png, config.json and its best/last weights. The step count is set from
-# a calibration: 12 steps are timed first, then the run gets as many steps as fit the time left,
-# so that its one-cycle schedule ends inside the budget. Without a working GPU it stops before
-# training. WORK (default /tmp/pins-gpu) holds the data; COUNT, when set, makes each training
+# run's log.csv, curves.png, config.json and its best/last weights. With STEPS set (the shipped
+# run: STEPS=900, the config's own count) the run takes that many steps; otherwise the count is
+# set from a calibration: 12 steps are timed first, then the run gets as many steps as fit the
+# time left, so that its one-cycle schedule ends inside the budget. Without a working GPU it
+# stops before training. WORK (default /tmp/pins-gpu) holds the data; COUNT, when set, makes each training
 # set that many pairs (a quick try of the script).
 set -uo pipefail
 PINS=${1:?usage: train_gpu.sh PINS OUT [SECONDS] [DEVICE]}
@@ -96,11 +97,14 @@ for k, (_, d, i) in enumerate(items):
 print(len(items), "pairs in", f"{w}/mix")
 PY
 
-# 5. Calibration: 12 steps, timed.
-rm -rf "$WORK/cal"
-"$PINS" train --quiet --config "$CONFIG" --data "$WORK/mix" --out "$WORK/cal" --init "$INIT" \
-    --device "$DEVICE" --stop-after 12 >>"$checks" 2>&1 || { say "calibration failed"; exit 4; }
-steps=$(python3 - "$WORK/cal/log.csv" "$BUDGET" "$(elapsed)" <<'PY'
+# 5. The step count: STEPS, or a calibration of 12 timed steps.
+if [ -n "${STEPS:-}" ]; then
+    steps=$STEPS
+else
+    rm -rf "$WORK/cal"
+    "$PINS" train --quiet --config "$CONFIG" --data "$WORK/mix" --out "$WORK/cal" --init "$INIT" \
+        --device "$DEVICE" --stop-after 12 >>"$checks" 2>&1 || { say "calibration failed"; exit 4; }
+    steps=$(python3 - "$WORK/cal/log.csv" "$BUDGET" "$(elapsed)" <<'PY'
 import csv, sys, statistics
 rows = list(csv.DictReader(open(sys.argv[1])))
 ms = [float(r["ms_per_step"]) for r in rows]
@@ -111,15 +115,16 @@ steps = int(left / (steady / 1e3) * 0.9)    # 10 % for validation and checkpoint
 print(max(steps, 0))
 PY
 )
-say "calibration: $(tail -n +7 "$WORK/cal/log.csv" | cut -d, -f6 | tr '\n' ' ') ms per step; run of $steps steps"
-[ "$steps" -ge 50 ] || { say "too little time left to train"; exit 5; }
+    say "calibration: $(tail -n +7 "$WORK/cal/log.csv" | cut -d, -f6 | tr '\n' ' ') ms per step; run of $steps steps"
+    [ "$steps" -ge 50 ] || { say "too little time left to train"; exit 5; }
+fi
 
 # 6. The run, then its weights.
 python3 - "$CONFIG" "$steps" "$WORK/config.json" <<'PY'
 import json, sys
 c = json.load(open(sys.argv[1]))
 c["steps"] = int(sys.argv[2])
-c["val_every"] = max(50, c["steps"] // 5)
+c["val_every"] = max(50, c["steps"] // 6)
 json.dump(c, open(sys.argv[3], "w"), indent=2)
 PY
 rm -rf "$WORK/run"
