@@ -36,6 +36,19 @@ pub fn sequence_loss(
     total.unwrap_or_else(|| Tensor::zeros([1], &gt.device()))
 }
 
+/// The per-pixel weights of the loss: `valid`, times `moving_weight` where the true motion is
+/// over 0.5 px (`TrainConfig::moving_weight`; 1 leaves `valid` as it is).
+///
+/// # Shapes
+/// `gt`: `[B, 2, H, W]`, `valid`: `[B, 1, H, W]` → `[B, 1, H, W]`
+pub fn moving_weights(gt: Tensor<4>, valid: Tensor<4>, moving_weight: f32) -> Tensor<4> {
+    if moving_weight == 1.0 {
+        return valid;
+    }
+    let moving = gt.powi_scalar(2).sum_dim(1).greater_elem(0.25).float(); // |f| > 0.5
+    valid * (moving.mul_scalar(moving_weight - 1.0).add_scalar(1.0))
+}
+
 /// Mean end-point error of `pred` over valid pixels, for progress reports.
 ///
 /// # Shapes
@@ -69,5 +82,26 @@ mod tests {
         let l: f32 =
             sequence_loss(&[Tensor::zeros([1, 2, 4, 4], &dev)], huge, valid, 0.8).into_scalar();
         assert_eq!(l, 0.0);
+    }
+
+    /// With a moving weight w, an error on a moving pixel costs w times one on a still pixel.
+    #[test]
+    fn moving_pixels_weigh_moving_weight_times_more() {
+        let dev = Device::flex();
+        // Pixel 0 moves 2 px; pixels 1..3 stand still; the prediction is off by 1 px in u on
+        // pixel 0 in one case and on pixel 1 in the other.
+        let gt = Tensor::<4>::from_floats([[[[2.0, 0.0, 0.0, 0.0]], [[0.0; 4]]]], &dev);
+        let valid = Tensor::<4>::ones([1, 1, 1, 4], &dev);
+        let off_moving = Tensor::<4>::from_floats([[[[3.0, 0.0, 0.0, 0.0]], [[0.0; 4]]]], &dev);
+        let off_still = Tensor::<4>::from_floats([[[[2.0, 1.0, 0.0, 0.0]], [[0.0; 4]]]], &dev);
+        let w = moving_weights(gt.clone(), valid.clone(), 10.0);
+        let a: f32 = sequence_loss(&[off_moving.clone()], gt.clone(), w.clone(), 0.8).into_scalar();
+        let b: f32 = sequence_loss(&[off_still.clone()], gt.clone(), w, 0.8).into_scalar();
+        assert!((a / b - 10.0).abs() < 1e-5, "{a} / {b}");
+        // Weight 1 is the plain loss.
+        let plain = moving_weights(gt.clone(), valid.clone(), 1.0);
+        let c: f32 = sequence_loss(&[off_moving], gt.clone(), plain, 0.8).into_scalar();
+        let d: f32 = sequence_loss(&[off_still], gt, valid, 0.8).into_scalar();
+        assert!((c - d).abs() < 1e-7);
     }
 }

@@ -12,7 +12,7 @@ use super::config::TrainConfig;
 use super::trainer::TrainOptions;
 use crate::error::{Error, Result};
 use crate::flow::data::{Batch, Example, FlowDataset, make_example};
-use crate::flow::loss::{mean_epe, sequence_loss};
+use crate::flow::loss::{mean_epe, moving_weights, sequence_loss};
 use crate::flow::model::Mms;
 use crate::rng;
 
@@ -139,9 +139,13 @@ pub fn take_parallel(
                     let replica = model.clone().fork(device);
                     let batch = Batch::stack(part, h, w, device);
                     let preds = replica.forward(batch.img1, batch.img2, config.iters, true);
-                    let loss =
-                        sequence_loss(&preds, batch.flow.clone(), batch.valid.clone(), config.rho)
-                            .mul_scalar(weight);
+                    let weights = moving_weights(
+                        batch.flow.clone(),
+                        batch.valid.clone(),
+                        config.moving_weight,
+                    );
+                    let loss = sequence_loss(&preds, batch.flow.clone(), weights, config.rho)
+                        .mul_scalar(weight);
                     let loss_value: f32 = loss.clone().into_scalar();
                     let (num, den) = preds
                         .last()
@@ -243,7 +247,12 @@ pub fn take(
     opts: &TrainOptions,
 ) -> Result<(Mms, StepStats)> {
     let preds = model.forward(batch.img1, batch.img2, config.iters, true);
-    let loss = sequence_loss(&preds, batch.flow.clone(), batch.valid.clone(), config.rho);
+    let weights = moving_weights(
+        batch.flow.clone(),
+        batch.valid.clone(),
+        config.moving_weight,
+    );
+    let loss = sequence_loss(&preds, batch.flow.clone(), weights, config.rho);
     let loss_value: f32 = loss.clone().into_scalar();
     if !loss_value.is_finite() {
         return Err(non_finite_loss(loss_value, step, opts));
