@@ -514,3 +514,53 @@ fn operating_points_give_the_error_against_run_time() {
     ]));
     assert!(err.contains("--scale"), "{err}");
 }
+
+/// The peer row: a tracking experiment on OpenCV's DIS flow of the clip's camera frames tracks
+/// the disc and reports DIS's time per frame (where Python has OpenCV; elsewhere the run fails
+/// with a message naming the DIS script, and the test says it could not check more).
+#[test]
+fn a_dis_experiment_tracks_on_the_peer_flow() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("line.json"),
+        r#"{"scene": {"width": 256, "height": 192, "frames": 20, "seed": 4,
+            "objects": [{"path": "line", "radius": 16, "from": [0.3, 0.5], "to": [0.7, 0.5]}]}}"#,
+    )
+    .unwrap();
+    let cfg = d.path().join("exp.json");
+    std::fs::write(
+        &cfg,
+        r#"{"clips": [{"name": "line", "config": "line.json"}],
+            "predictors": [{"name": "cv", "mtp": {"method": "constant_velocity"}}],
+            "horizons": [1], "flow": "dis", "confirm": 2}"#,
+    )
+    .unwrap();
+    let out = d.path().join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_pins"))
+        .args(["track", "experiment", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .arg("--no-plots")
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&run.stdout).to_string() + &String::from_utf8_lossy(&run.stderr);
+    if !run.status.success() {
+        assert!(text.contains("dis"), "{text}");
+        eprintln!("DIS experiment not checked (no OpenCV for python3?): {text}");
+        return;
+    }
+    assert!(text.contains("DIS flow:"), "{text}");
+    let r = json(&out.join("report.json"));
+    assert_eq!(r["flow"], "dis");
+    assert!(r["flow_ms_per_frame"].as_f64().unwrap() > 0.0);
+    // The disc is found: the pooled one-frame row has samples and a finite error.
+    let rows = r["rows"].as_array().unwrap();
+    let pooled = rows
+        .iter()
+        .find(|row| row["object"].is_null() && row["horizon"] == 1)
+        .expect("pooled row");
+    assert!(pooled["count"].as_u64().unwrap() > 0, "{text}");
+    assert!(pooled["rmse_2d"].as_f64().unwrap() < 10.0, "{text}");
+}

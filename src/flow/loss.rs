@@ -95,8 +95,15 @@ mod tests {
         let off_moving = Tensor::<4>::from_floats([[[[3.0, 0.0, 0.0, 0.0]], [[0.0; 4]]]], &dev);
         let off_still = Tensor::<4>::from_floats([[[[2.0, 1.0, 0.0, 0.0]], [[0.0; 4]]]], &dev);
         let w = moving_weights(gt.clone(), valid.clone(), 10.0);
-        let a: f32 = sequence_loss(&[off_moving.clone()], gt.clone(), w.clone(), 0.8).into_scalar();
-        let b: f32 = sequence_loss(&[off_still.clone()], gt.clone(), w, 0.8).into_scalar();
+        let a: f32 = sequence_loss(
+            std::slice::from_ref(&off_moving),
+            gt.clone(),
+            w.clone(),
+            0.8,
+        )
+        .into_scalar();
+        let b: f32 =
+            sequence_loss(std::slice::from_ref(&off_still), gt.clone(), w, 0.8).into_scalar();
         assert!((a / b - 10.0).abs() < 1e-5, "{a} / {b}");
         // Weight 1 is the plain loss.
         let plain = moving_weights(gt.clone(), valid.clone(), 1.0);

@@ -3,6 +3,7 @@
 
 pub mod data;
 pub mod device;
+pub mod dis;
 pub mod eval;
 pub mod infer;
 pub mod kernels;

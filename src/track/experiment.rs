@@ -31,6 +31,8 @@ pub enum FlowSource {
     Truth,
     /// MMS on the camera frames: the whole system, as in the paper.
     Mms,
+    /// OpenCV's DIS (medium) on the same camera frames, through Python (`flow::dis`): the peer.
+    Dis,
 }
 
 /// One named clip: a clip config file (relative to the experiment file).
@@ -240,7 +242,7 @@ pub struct Row {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ExperimentReport {
     pub flow: FlowSource,
-    /// Flow estimation time per frame (MMS only).
+    /// Flow estimation time per frame (estimated flow only).
     pub flow_ms_per_frame: Option<f64>,
     pub rows: Vec<Row>,
     /// (clip, predictor) → ID switches.
@@ -292,29 +294,44 @@ pub fn clip_flows(
             ))
         }
         (FlowSource::Mms, Some(p)) => {
-            let camera = cfg.camera()?;
-            let frames = (0..scene.frames)
-                .into_par_iter()
-                .map(|n| {
-                    let seed = rng::derive(scene.seed, &[rng::purpose::NOISE_FRAME1, n as u64]);
-                    camera.apply(&scene.frame(n)?, seed)
-                })
-                .collect::<Result<Vec<_>>>()?;
+            let frames = camera_frames(cfg)?;
             let pairs = pair_flows_scaled(p, frames.as_slice(), point.iters, point.scale)
                 .collect::<Result<Vec<_>>>()?;
             let ms = pairs.iter().map(|f| f.ms).sum::<f64>() / pairs.len() as f64;
             let flows = pairs.into_iter().map(|f| f.flow).collect();
-            let grey = frames.iter().map(GreyFrame::new).collect();
-            Ok((
-                ClipData {
-                    truth,
-                    flows,
-                    frames: Some(grey),
-                },
-                Some(ms),
-            ))
+            Ok((estimated(truth, flows, &frames), Some(ms)))
+        }
+        (FlowSource::Dis, _) => {
+            let frames = camera_frames(cfg)?;
+            let (flows, ms) = crate::flow::dis::sequence_flows(DIS_PYTHON, &frames)?;
+            Ok((estimated(truth, flows, &frames), Some(ms)))
         }
         (FlowSource::Mms, None) => Err(Error::invalid("flow", "MMS flow needs weights")),
+    }
+}
+
+/// The Python that runs DIS for `"flow": "dis"` (it must import OpenCV and numpy).
+pub const DIS_PYTHON: &str = "python3";
+
+/// A clip's frames through its camera, each with its own noise.
+fn camera_frames(cfg: &SequenceConfig) -> Result<Vec<crate::types::Image>> {
+    let scene = &cfg.scene;
+    let camera = cfg.camera()?;
+    (0..scene.frames)
+        .into_par_iter()
+        .map(|n| {
+            let seed = rng::derive(scene.seed, &[rng::purpose::NOISE_FRAME1, n as u64]);
+            camera.apply(&scene.frame(n)?, seed)
+        })
+        .collect()
+}
+
+/// An estimated flow's clip data: the flows with the frames they came from.
+fn estimated(truth: Truth, flows: Vec<Flow>, frames: &[crate::types::Image]) -> ClipData {
+    ClipData {
+        truth,
+        flows,
+        frames: Some(frames.iter().map(GreyFrame::new).collect()),
     }
 }
 
@@ -349,7 +366,7 @@ pub fn run(
                 .with_refine(&crate::flow::refine::Refine::parse(&cfg.refine)?)
                 .with_coarse_start(crate::flow::infer::parse_start(&cfg.start)?),
         ),
-        FlowSource::Truth => None,
+        FlowSource::Truth | FlowSource::Dis => None,
     };
     let mut rows = Vec::new();
     let mut switches = Vec::new();
@@ -364,6 +381,7 @@ pub fn run(
             let (data, ms) = clip_flows(&clip.clip, cfg.flow, predictor.as_ref(), point)?;
             flow_ms.extend(ms);
             let mms_point = (cfg.flow == FlowSource::Mms).then_some(point);
+            let estimated_flow = cfg.flow != FlowSource::Truth;
             for p in &cfg.predictors {
                 // With several operating points each (predictor, point) is its own case.
                 let name = if several {
@@ -381,7 +399,7 @@ pub fn run(
                     threshold: cfg.threshold,
                     noise_k: cfg.noise_k,
                     min_area: cfg.min_area,
-                    detect: cfg.detect.resolved(cfg.flow == FlowSource::Mms),
+                    detect: cfg.detect.resolved(estimated_flow),
                     debug: false,
                 };
                 let tracks = track_clip(&data, &opts)?;
@@ -520,7 +538,12 @@ pub fn table(r: &ExperimentReport) -> String {
         );
     }
     if let Some(ms) = r.flow_ms_per_frame {
-        s += &format!("MMS flow: {ms:.0} ms per frame\n");
+        let name = if r.flow == FlowSource::Dis {
+            "DIS"
+        } else {
+            "MMS"
+        };
+        s += &format!("{name} flow: {ms:.0} ms per frame\n");
     }
     s
 }
