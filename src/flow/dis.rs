@@ -3,8 +3,7 @@
 //! the real-data benchmark runs its baselines. The frames travel as 8-bit PNGs (what a camera
 //! writes and what the script would read from a clip folder) and the flows come back as .flo.
 
-use std::io::Write;
-use std::process::{Command, Stdio};
+use std::ffi::OsStr;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
@@ -28,36 +27,18 @@ pub fn sequence_flows(python: &str, frames: &[Image]) -> Result<(Vec<Flow>, f64)
         write_image(&frame_dir.join(format!("{n:05}.png")), f, BitDepth::Eight)?;
     }
     let started = Instant::now();
-    let mut child = Command::new(python)
-        .arg("-")
-        .arg("--frames")
-        .arg(&frame_dir)
-        .arg("--out")
-        .arg(&flow_dir)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| Error::invalid("dis", format!("{python} could not be started: {e}")))?;
-    if let Some(mut stdin) = child.stdin.take() {
-        stdin
-            .write_all(SCRIPT.as_bytes())
-            .map_err(|e| Error::invalid("dis", format!("piping the script to {python}: {e}")))?;
-    }
-    let out = child
-        .wait_with_output()
-        .map_err(|e| Error::invalid("dis", format!("waiting for {python}: {e}")))?;
-    if !out.status.success() {
-        let err = String::from_utf8_lossy(&out.stderr);
-        return Err(Error::invalid(
-            "dis",
-            format!(
-                "scripts/dis_flows.py failed ({}): {}",
-                out.status,
-                err.trim().lines().last().unwrap_or("")
-            ),
-        ));
-    }
+    crate::io::python::run_piped(
+        python,
+        SCRIPT,
+        "scripts/dis_flows.py",
+        "dis",
+        [
+            OsStr::new("--frames"),
+            frame_dir.as_os_str(),
+            OsStr::new("--out"),
+            flow_dir.as_os_str(),
+        ],
+    )?;
     let ms = started.elapsed().as_secs_f64() * 1e3 / (frames.len() - 1) as f64;
     let flows = (0..frames.len() - 1)
         .map(|n| read_flo(&flow_dir.join(format!("{n:05}.flo"))))

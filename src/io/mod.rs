@@ -16,6 +16,7 @@ pub mod json;
 pub mod kitti;
 pub mod npy;
 pub mod pfm;
+pub mod python;
 mod raster_guard;
 
 pub use atomic::{read_bytes, write_atomic, write_bytes_atomic};

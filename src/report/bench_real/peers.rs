@@ -2,7 +2,6 @@
 //! benchmark: `scripts/flow_baselines.py`, compiled into the binary and run by Python as a
 //! subprocess on a generated dataset folder; its JSON is read back with per-pair scores.
 
-use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
@@ -72,39 +71,22 @@ pub fn available(python: &str) -> std::result::Result<String, String> {
 /// Runs the baselines on `data` with `threads` OpenCV threads, writing their JSON to `json`,
 /// and reads it back. A failure of the script is an error carrying its message.
 pub fn run(python: &str, data: &Path, json: &Path, threads: usize) -> Result<PeersFile> {
-    let mut child = Command::new(python)
-        .arg("-")
-        .arg("--data")
-        .arg(data)
-        .arg("--out")
-        .arg(json)
-        .arg("--threads")
-        .arg(threads.to_string())
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| Error::invalid("peers", format!("{python} could not be started: {e}")))?;
-    if let Some(mut stdin) = child.stdin.take() {
-        stdin
-            .write_all(SCRIPT.as_bytes())
-            .map_err(|e| Error::invalid("peers", format!("piping the script to {python}: {e}")))?;
-    }
-    let out = child
-        .wait_with_output()
-        .map_err(|e| Error::invalid("peers", format!("waiting for {python}: {e}")))?;
-    if !out.status.success() {
-        let err = String::from_utf8_lossy(&out.stderr);
-        return Err(Error::invalid(
-            "peers",
-            format!(
-                "scripts/flow_baselines.py on {} failed ({}): {}",
-                data.display(),
-                out.status,
-                err.trim()
-            ),
-        ));
-    }
+    let threads = threads.to_string();
+    let args: [&std::ffi::OsStr; 6] = [
+        "--data".as_ref(),
+        data.as_os_str(),
+        "--out".as_ref(),
+        json.as_os_str(),
+        "--threads".as_ref(),
+        threads.as_ref(),
+    ];
+    crate::io::python::run_piped(
+        python,
+        SCRIPT,
+        &format!("scripts/flow_baselines.py on {}", data.display()),
+        "peers",
+        args,
+    )?;
     read(json)
 }
 
