@@ -62,22 +62,21 @@ impl Prefetch {
         }
     }
 
-    /// The examples of step `step`, which must be the next step not yet taken.
+    /// The examples of step `step`, which must be the next step not yet taken (the loop asks
+    /// in order; anything else is a bug, reported rather than loaded out of turn).
     pub fn take(&mut self, step: usize) -> Result<Vec<Example>> {
-        let Some((s, handle)) = self.queue.pop_front() else {
-            return step::examples(&self.config, &self.train_set, step);
-        };
-        if s != step {
-            // Out of order (never in the loop): load it directly and start over from there.
-            self.queue.clear();
-            self.next = step + 1;
-            self.fill();
-            return step::examples(&self.config, &self.train_set, step);
+        match self.queue.pop_front() {
+            Some((s, handle)) if s == step => {
+                self.fill();
+                handle
+                    .join()
+                    .unwrap_or_else(|_| Err(Error::invalid("training", "loading a batch panicked")))
+            }
+            _ => Err(Error::invalid(
+                "training",
+                format!("the batch of step {step} was asked out of order"),
+            )),
         }
-        self.fill();
-        handle
-            .join()
-            .unwrap_or_else(|_| Err(Error::invalid("training", "loading a batch panicked")))
     }
 }
 
