@@ -128,6 +128,13 @@ struct RunArgs {
     /// the flow here, off for --flows (turn it on for estimated flows read from files).
     #[arg(long, value_enum, default_value = "auto")]
     place: AutoSwitch,
+    /// Alignment (with frames): each accepted region's motion is the translation that best
+    /// maps its colours onto the next frame, searched around its mean flow, where that
+    /// explains the frames better (an estimated flow falls short on small movers); the
+    /// trajectory fits' speed and direction samples take it. `auto`: on when MMS estimates
+    /// the flow here, off for --flows (turn it on for estimated flows read from files).
+    #[arg(long, value_enum, default_value = "auto")]
+    align: AutoSwitch,
     /// Placement: frames in the background's temporal median.
     #[arg(long, default_value_t = 30)]
     place_frames: usize,
@@ -312,6 +319,11 @@ fn run(a: RunArgs) -> Result<()> {
         },
         change_k: a.change_k,
         trim: !a.no_trim,
+        align: match a.align {
+            AutoSwitch::Auto => None,
+            AutoSwitch::On => Some(true),
+            AutoSwitch::Off => Some(false),
+        },
         place: PlaceConfig {
             enabled: match a.place {
                 AutoSwitch::Auto => None,

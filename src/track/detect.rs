@@ -9,6 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::align::align;
 use super::background::{BackgroundModel, GlobalMotion, fit};
 use super::change::change_mask;
 use super::grow::{grow, seed_motion};
@@ -63,6 +64,14 @@ pub struct DetectConfig {
     /// background's motion explains better than the region's motion, by more than the change
     /// test's level (the halo an estimated flow leaves around a mover; `track::trim`).
     pub trim: bool,
+    /// With frames: each accepted region's motion is the translation that best maps its
+    /// colours in frame n onto frame n + 1 (`track::align`, searched around its mean flow),
+    /// where that explains the frames better than the mean flow: the trajectory fits' speed
+    /// and direction samples (`Region::aligned`). `null` (the default): on for an estimated
+    /// flow, off for a given one (`DetectConfig::resolved`).
+    pub align: Option<bool>,
+    /// The alignment searches at most this many pixels from the mean flow on each axis.
+    pub align_reach: usize,
     /// With frames and a still camera: each accepted region's centroid moves to its object in
     /// the frame (where it differs from the temporal median of the last frames;
     /// `track::still_background`).
@@ -84,17 +93,21 @@ impl Default for DetectConfig {
             grow_margin: 24,
             grow_reach: 10,
             trim: true,
+            align: None,
+            align_reach: 24,
             place: PlaceConfig::default(),
         }
     }
 }
 
 impl DetectConfig {
-    /// The settings with the change test's default settled: on when the flow is estimated
-    /// (its jitter on a still background is what the test is for), off for a given flow.
+    /// The settings with the change test's, the alignment's and the placement's defaults
+    /// settled: on when the flow is estimated (its jitter on a still background and its
+    /// shortfall on small movers are what they are for), off for a given flow.
     pub fn resolved(&self, estimated_flow: bool) -> Self {
         Self {
             change: Some(self.change.unwrap_or(estimated_flow)),
+            align: Some(self.align.unwrap_or(estimated_flow)),
             place: PlaceConfig {
                 enabled: Some(self.place.enabled.unwrap_or(estimated_flow)),
                 ..self.place.clone()
@@ -147,6 +160,12 @@ impl DetectConfig {
             return Err(Error::invalid(
                 "detect.grow_margin",
                 format!("must be at most 1000 px, got {}", self.grow_margin),
+            ));
+        }
+        if !(1..=256).contains(&self.align_reach) {
+            return Err(Error::invalid(
+                "detect.align_reach",
+                format!("must be 1..=256 px, got {}", self.align_reach),
             ));
         }
         if self.background_samples < 16 || self.background_samples > 100_000_000 {
@@ -298,9 +317,10 @@ pub fn detect(
             (t, regions_of(test, flow, t, min_area)?)
         }
     };
+    let aligner = frames.filter(|_| cfg.align == Some(true));
     let candidates = found
         .into_iter()
-        .map(|(region, pixels)| {
+        .map(|(mut region, pixels): (Region, Vec<usize>)| {
             let photometric = frames.filter(|_| cfg.photometric);
             let residuals = photometric.and_then(|p| p.residuals(&pixels, flow, &null));
             let (accepted, reason) = match (photometric, residuals) {
@@ -331,6 +351,18 @@ pub fn detect(
                     }
                 }
             };
+            // The accepted region's motion, as the frames confirm it.
+            if accepted && let Some(p) = aligner {
+                region.aligned = align(
+                    p.first_colour(),
+                    p.second_colour(),
+                    &pixels,
+                    region.mean_flow,
+                    cfg.align_reach,
+                )
+                .filter(|a| a.residual < a.start_residual)
+                .map(|a| a.motion);
+            }
             Candidate {
                 region,
                 residuals,
@@ -509,6 +541,42 @@ mod tests {
                     .iter()
                     .all(|r| (r.centroid.0 - 36.5).abs() > 3.0)
             );
+        }
+    }
+
+    /// The flow gives the square 1.6 of its 2 px: with the alignment on, the accepted
+    /// region carries the motion the frames confirm; off (as for a given flow), none.
+    #[test]
+    fn the_alignment_gives_an_accepted_region_the_frames_motion() {
+        for seed in [3, 4] {
+            let (pair, mut flow) = scene(seed);
+            for y in 20..34 {
+                for x in 30..44 {
+                    flow.set(y, x, 1.6, 0.0);
+                }
+            }
+            let cfg = DetectConfig {
+                background: BackgroundModel::None,
+                change: Some(true),
+                align: Some(true),
+                ..DetectConfig::default()
+            };
+            let found = detect(&flow, Some(&pair), 0.5, 3.0, 20, &cfg).unwrap();
+            let accepted = found.accepted();
+            assert_eq!(accepted.len(), 1, "seed {seed}: {:?}", found.candidates);
+            let r = &accepted[0];
+            let m = r.aligned.expect("aligned motion");
+            assert!(
+                (m.0 - 2.0).abs() < 0.25 && m.1.abs() < 0.25 && (r.mean_flow.0 - 1.6).abs() < 0.3,
+                "seed {seed}: aligned {m:?}, mean flow {:?}",
+                r.mean_flow
+            );
+            let off = DetectConfig {
+                align: Some(false),
+                ..cfg.clone()
+            };
+            let found = detect(&flow, Some(&pair), 0.5, 3.0, 20, &off).unwrap();
+            assert!(found.accepted().iter().all(|r| r.aligned.is_none()));
         }
     }
 

@@ -2,6 +2,7 @@
 //! background-motion model, a photometric test and consistency over frames, Kalman smoothing,
 //! weighted polynomial fits and sub-step extrapolation, optimal assignment.
 
+pub mod align;
 pub mod appearance;
 pub mod background;
 pub mod change;

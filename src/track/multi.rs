@@ -544,6 +544,7 @@ mod tests {
             bbox: [0, 0, 1, 1],
             mean_flow: (vx, vy),
             placed: None,
+            aligned: None,
         }
     }
 

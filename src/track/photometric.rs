@@ -40,6 +40,7 @@ pub struct GreyPair {
     a: Arc<[f32]>,
     b: Arc<[f32]>,
     first: ColourFrame,
+    second: ColourFrame,
 }
 
 impl GreyPair {
@@ -60,12 +61,18 @@ impl GreyPair {
             a: first.data.clone(),
             b: second.data.clone(),
             first: first.colour.clone(),
+            second: second.colour.clone(),
         })
     }
 
     /// Frame 1's colour samples.
     pub fn first_colour(&self) -> &ColourFrame {
         &self.first
+    }
+
+    /// Frame 2's colour samples.
+    pub fn second_colour(&self) -> &ColourFrame {
+        &self.second
     }
 
     /// Mean |frame 1 − frame 2 warped by `flow`| and mean |frame 1 − frame 2 warped by

@@ -25,6 +25,10 @@ pub struct Region {
     /// (`track::still_background`): the trajectory filter measures this instead of the
     /// flow's centroid; association and confirmation keep the flow's.
     pub placed: Option<(f64, f64)>,
+    /// The region's motion (px/frame) that the frames confirm (`track::align`), when the
+    /// alignment ran and explained the frames better than the mean flow: the speed and
+    /// direction samples of the trajectory fits (Eqs. S20–S21) take it for the flow's.
+    pub aligned: Option<(f64, f64)>,
     /// The object's mean colour in frame n (8-bit levels, R, G, B; a grey frame's level three
     /// times) over a disc at its centre, when the frames were given (`FrameDetection::colour`):
     /// the tracker's appearance cue.
@@ -179,6 +183,7 @@ impl Region {
             bbox,
             mean_flow: (su / nf, sv / nf),
             placed: None,
+            aligned: None,
         }
     }
 }

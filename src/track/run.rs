@@ -155,6 +155,10 @@ pub struct DebugRegion {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub colour: Option<[f64; 3]>,
     pub mean_flow: [f64; 2],
+    /// The motion the frames confirm (`track::align`), when the alignment ran and beat the
+    /// mean flow.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub aligned: Option<[f64; 2]>,
     pub speed: f64,
     /// Mean warp residual with the region's flow and with the background's motion, and their
     /// ratio (null without frames).
@@ -343,6 +347,7 @@ pub fn track_sequence(
                             placement: c.placement.as_ref().map(|p| p.describe()),
                             colour: r.colour,
                             mean_flow: [r.mean_flow.0, r.mean_flow.1],
+                            aligned: r.aligned.map(|m| [m.0, m.1]),
                             speed: r.speed,
                             residual_flow: c.residuals.map(|x| x.0),
                             residual_background: c.residuals.map(|x| x.1),

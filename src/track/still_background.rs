@@ -63,7 +63,8 @@ impl ColourFrame {
         (n > 0).then(|| sum.map(|s| s / n as f64))
     }
 
-    fn plane(&self, c: usize) -> &[u8] {
+    /// Channel `c`'s 8-bit samples, `[H, W]`.
+    pub(crate) fn plane(&self, c: usize) -> &[u8] {
         let n = self.width * self.height;
         &self.data[c * n..(c + 1) * n]
     }
