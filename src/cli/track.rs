@@ -65,7 +65,8 @@ struct RunArgs {
     /// Output folder (tracks.json and one plot per object).
     #[arg(long, required = true)]
     out: Option<PathBuf>,
-    /// Predictor: the polynomial fit of Note S13 or the constant-velocity baseline.
+    /// Predictor: the polynomial fit of Note S13, the constant-velocity baseline, or, per
+    /// horizon, whichever of the two forecast this track better over its recent past.
     #[arg(long, value_enum, default_value = "poly")]
     method: Method,
     /// Fitting window L in frames.
@@ -211,6 +212,7 @@ enum MotionSourceArg {
 enum Method {
     Poly,
     ConstantVelocity,
+    Select,
 }
 
 #[derive(clap::Args)]
@@ -276,6 +278,7 @@ fn run(a: RunArgs) -> Result<()> {
             method: match a.method {
                 Method::Poly => mtp::Method::Poly,
                 Method::ConstantVelocity => mtp::Method::ConstantVelocity,
+                Method::Select => mtp::Method::Select,
             },
             window: a.window,
             order: a.order,

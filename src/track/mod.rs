@@ -10,6 +10,7 @@ pub mod consistency;
 pub mod detect;
 pub mod eval;
 pub mod experiment;
+pub mod forecast_score;
 pub mod grow;
 pub mod hungarian;
 pub mod kalman;

@@ -5,10 +5,15 @@
 
 use std::collections::VecDeque;
 
+use super::forecast_score::ForecastScores;
 use super::kalman::{ConstantVelocity, RandomWalk};
 use super::predict::fit_motion;
 use super::roi::Region;
 use crate::error::{Error, Result};
+
+/// Measured frames before a track's forecasts enter `Method::Select`'s record (the
+/// tracker's confirmation window).
+const SETTLED: usize = 5;
 
 /// How the future path is predicted.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -18,6 +23,11 @@ pub enum Method {
     Poly,
     /// The baseline: the position Kalman filter's velocity held constant.
     ConstantVelocity,
+    /// For each horizon k, whichever of the two forecast this track better over its own
+    /// recent past (`track::forecast_score`): the polynomial fit until both have been
+    /// checked a few times at that horizon. The fit wins on steadily turning paths, the
+    /// constant velocity where the direction oscillates within the window.
+    Select,
 }
 
 /// Predictor settings (the paper's defaults: L = 30, n = 2).
@@ -122,6 +132,8 @@ pub struct Mtp {
     sin: RandomWalk,
     cos: RandomWalk,
     history: VecDeque<(f64, f64, Option<f64>)>,
+    /// The forecasts' record for `Method::Select`.
+    scores: ForecastScores,
 }
 
 impl Mtp {
@@ -134,6 +146,7 @@ impl Mtp {
             sin: RandomWalk::new(config.motion_q, config.motion_r),
             cos: RandomWalk::new(config.motion_q, config.motion_r),
             history: VecDeque::new(),
+            scores: ForecastScores::new(2),
             config,
         })
     }
@@ -203,18 +216,34 @@ impl Mtp {
             self.history.pop_front();
         }
         let centroid = (self.x.x[0], self.y.x[0]);
+        let poly = || -> Result<Vec<(f64, f64)>> {
+            let samples: Vec<_> = self.history.iter().copied().collect();
+            let mut fit = fit_motion(&samples, self.config.order)?;
+            fit.now = frame as f64;
+            Ok(fit.extrapolate(centroid, horizon))
+        };
+        let (vx, vy) = (self.x.x[1], self.y.x[1]);
+        let constant: Vec<(f64, f64)> = (1..=horizon)
+            .map(|k| (centroid.0 + vx * k as f64, centroid.1 + vy * k as f64))
+            .collect();
         let path = match self.config.method {
-            Method::Poly => {
-                let samples: Vec<_> = self.history.iter().copied().collect();
-                let mut fit = fit_motion(&samples, self.config.order)?;
-                fit.now = frame as f64;
-                fit.extrapolate(centroid, horizon)
-            }
-            Method::ConstantVelocity => {
-                let (vx, vy) = (self.x.x[1], self.y.x[1]);
-                (1..=horizon)
-                    .map(|k| (centroid.0 + vx * k as f64, centroid.1 + vy * k as f64))
-                    .collect()
+            Method::Poly => poly()?,
+            Method::ConstantVelocity => constant,
+            Method::Select => {
+                let candidates = [poly()?, constant];
+                // Only a measured position checks the past forecasts; a coasting centre is
+                // itself a forecast.
+                if region.is_some() {
+                    self.scores.check(frame, centroid);
+                }
+                let path = self.scores.choose(&candidates);
+                // A track's first forecasts (a fit of a few samples, a velocity the filter
+                // has barely measured) say nothing of how either predictor does later.
+                let measured = self.history.iter().filter(|s| s.1.is_finite()).count();
+                if measured >= SETTLED {
+                    self.scores.record(frame, candidates);
+                }
+                path
             }
         };
         if path.iter().any(|p| !p.0.is_finite() || !p.1.is_finite()) || !centroid.0.is_finite() {
