@@ -360,6 +360,24 @@ fn a_global_bias_on_a_still_scene_is_not_the_background() {
     );
 }
 
+/// Every region of a `pins track --debug` folder's regions.jsonl, with its frame.
+fn debug_regions(debug: &Path) -> Vec<(usize, serde_json::Value)> {
+    let lines = std::fs::read_to_string(debug.join("regions.jsonl")).unwrap();
+    let mut out = Vec::new();
+    for line in lines.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let f = v["frame"].as_u64().unwrap() as usize;
+        out.extend(
+            v["regions"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|r| (f, r.clone())),
+        );
+    }
+    out
+}
+
 /// The exact flow moved by 4 px in a direction that changes every frame, and scaled by 0.6–1:
 /// the flow's region is the object's shape, but its centroid jitters around the object and its
 /// speed falls short, as an estimated flow's blob does on a small mover.
@@ -412,20 +430,15 @@ fn the_still_background_places_a_jittering_flow_region_on_its_object() {
     // Where a region was placed, the placed centre is nearer the object than the flow's.
     let object = &truth.objects[0].centroids;
     let (mut n, mut flow_err, mut placed_err) = (0, 0.0, 0.0);
-    let lines = std::fs::read_to_string(debug.join("regions.jsonl")).unwrap();
-    for line in lines.lines() {
-        let v: serde_json::Value = serde_json::from_str(line).unwrap();
-        let f = v["frame"].as_u64().unwrap() as usize;
-        for reg in v["regions"].as_array().unwrap() {
-            let (Some(c), Some(p)) = (reg["centroid"].as_array(), reg["placed"].as_array()) else {
-                continue;
-            };
-            let at = |a: &Vec<serde_json::Value>| (a[0].as_f64().unwrap(), a[1].as_f64().unwrap());
-            let ((cx, cy), (px, py), t) = (at(c), at(p), object[f]);
-            flow_err += (cx - t[0]).hypot(cy - t[1]);
-            placed_err += (px - t[0]).hypot(py - t[1]);
-            n += 1;
-        }
+    for (f, reg) in debug_regions(&debug) {
+        let (Some(c), Some(p)) = (reg["centroid"].as_array(), reg["placed"].as_array()) else {
+            continue;
+        };
+        let at = |a: &Vec<serde_json::Value>| (a[0].as_f64().unwrap(), a[1].as_f64().unwrap());
+        let ((cx, cy), (px, py), t) = (at(c), at(p), object[f]);
+        flow_err += (cx - t[0]).hypot(cy - t[1]);
+        placed_err += (px - t[0]).hypot(py - t[1]);
+        n += 1;
     }
     assert!(n >= 4, "only {n} regions placed");
     let (flow_err, placed_err) = (flow_err / n as f64, placed_err / n as f64);
@@ -479,24 +492,18 @@ fn the_alignment_recovers_the_motion_a_flow_falls_short_of() {
         track(&args, &d.path().join("on"), &truth);
         let object = &truth.objects[0].centroids;
         let (mut m_clip, mut a_clip, mut n_clip) = (0.0, 0.0, 0);
-        let lines = std::fs::read_to_string(debug.join("regions.jsonl")).unwrap();
-        for line in lines.lines() {
-            let v: serde_json::Value = serde_json::from_str(line).unwrap();
-            let f = v["frame"].as_u64().unwrap() as usize;
-            for reg in v["regions"].as_array().unwrap() {
-                let (Some(m), Some(a)) = (reg["mean_flow"].as_array(), reg["aligned"].as_array())
-                else {
-                    continue;
-                };
-                let at =
-                    |a: &Vec<serde_json::Value>| (a[0].as_f64().unwrap(), a[1].as_f64().unwrap());
-                let (t0, t1) = (object[f], object[f + 1]);
-                let (tx, ty) = (t1[0] - t0[0], t1[1] - t0[1]);
-                let ((mx, my), (ax, ay)) = (at(m), at(a));
-                m_clip += (mx - tx).hypot(my - ty);
-                a_clip += (ax - tx).hypot(ay - ty);
-                n_clip += 1;
-            }
+        for (f, reg) in debug_regions(&debug) {
+            let (Some(m), Some(a)) = (reg["mean_flow"].as_array(), reg["aligned"].as_array())
+            else {
+                continue;
+            };
+            let at = |a: &Vec<serde_json::Value>| (a[0].as_f64().unwrap(), a[1].as_f64().unwrap());
+            let (t0, t1) = (object[f], object[f + 1]);
+            let (tx, ty) = (t1[0] - t0[0], t1[1] - t0[1]);
+            let ((mx, my), (ax, ay)) = (at(m), at(a));
+            m_clip += (mx - tx).hypot(my - ty);
+            a_clip += (ax - tx).hypot(ay - ty);
+            n_clip += 1;
         }
         assert!(
             n_clip >= 10 && a_clip < m_clip,
