@@ -320,7 +320,7 @@ pub fn detect(
     let aligner = frames.filter(|_| cfg.align == Some(true));
     let candidates = found
         .into_iter()
-        .map(|(mut region, pixels): (Region, Vec<usize>)| {
+        .map(|(mut region, pixels)| {
             let photometric = frames.filter(|_| cfg.photometric);
             let residuals = photometric.and_then(|p| p.residuals(&pixels, flow, &null));
             let (accepted, reason) = match (photometric, residuals) {

@@ -223,14 +223,16 @@ impl Mtp {
             Ok(fit.extrapolate(centroid, horizon))
         };
         let (vx, vy) = (self.x.x[1], self.y.x[1]);
-        let constant: Vec<(f64, f64)> = (1..=horizon)
-            .map(|k| (centroid.0 + vx * k as f64, centroid.1 + vy * k as f64))
-            .collect();
+        let constant = || -> Vec<(f64, f64)> {
+            (1..=horizon)
+                .map(|k| (centroid.0 + vx * k as f64, centroid.1 + vy * k as f64))
+                .collect()
+        };
         let path = match self.config.method {
             Method::Poly => poly()?,
-            Method::ConstantVelocity => constant,
+            Method::ConstantVelocity => constant(),
             Method::Select => {
-                let candidates = [poly()?, constant];
+                let candidates = [poly()?, constant()];
                 // Only a measured position checks the past forecasts; a coasting centre is
                 // itself a forecast.
                 if region.is_some() {
