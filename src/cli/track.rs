@@ -174,6 +174,14 @@ struct RunArgs {
     /// it off).
     #[arg(long, default_value_t = 5.0)]
     appearance_px: f64,
+    /// Re-identification: an ended track's ID waits this many frames after it was last seen
+    /// for a new track of its colour born where its object could be (0 turns it off).
+    #[arg(long, default_value_t = 150)]
+    reid_frames: usize,
+    /// Re-identification: the new track's mean colour within this many of the old track's
+    /// standard deviations.
+    #[arg(long, default_value_t = 3.0)]
+    reid_k: f64,
     /// Write every frame's regions, their verdicts and reasons to DIR/regions.jsonl.
     #[arg(long)]
     debug: Option<PathBuf>,
@@ -297,6 +305,8 @@ fn run(a: RunArgs) -> Result<()> {
         max_coast_reported: a.max_coast_reported,
         appearance_k: a.appearance_k,
         appearance_px: a.appearance_px,
+        reid_frames: a.reid_frames,
+        reid_k: a.reid_k,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;

@@ -43,6 +43,16 @@ impl Appearance {
         }
     }
 
+    /// The running mean colour (8-bit levels per channel).
+    pub fn mean(&self) -> [f64; 3] {
+        self.mean
+    }
+
+    /// Whether enough colours have been seen for the cue to be used.
+    pub fn is_mature(&self) -> bool {
+        self.samples >= MIN_SAMPLES
+    }
+
     /// √Σ_c (colour_c − mean_c)² / (var_c + floor²): the colour's distance in standard
     /// deviations, each at least `floor` levels (sensor noise, the disc's placement).
     pub fn distance(&self, colour: [f64; 3], floor: f64) -> f64 {

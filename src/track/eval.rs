@@ -2,7 +2,10 @@
 //! matched to one true object (Hungarian on the frames it covers, as IDF1 does), then for every horizon h
 //! RMSE_X, RMSE_Y and RMSE_2D of the prediction made at frame n against the true centre at
 //! frame n + h, over the frames where the object is wholly in view. ID switches count, for
-//! each true object, how often the track covering it changes.
+//! each true object, how often the track covering it changes. A track the matching leaves
+//! without an object is a *second track* when it lies on one object in at least half of its
+//! observed frames (that object picked up again under a new ID, as MOT's fragmentations),
+//! and *follows no object* otherwise (a false track).
 
 use std::collections::BTreeMap;
 
@@ -29,8 +32,13 @@ pub struct HorizonError {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectReport {
     pub id: usize,
-    /// The true object it follows, or null for a spurious track.
+    /// The true object it follows, or null for a track the matching leaves without one.
     pub truth_index: Option<usize>,
+    /// For a track without `truth_index`: the object it lies on in at least half of its
+    /// observed frames, which another track follows (a second ID on it); null for a track
+    /// that follows no object. Its errors are scored against that object, but not pooled.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_on: Option<usize>,
     pub frames: usize,
     /// Mean distance between the tracked and the true centre (px).
     pub centre_error: f64,
@@ -41,7 +49,7 @@ pub struct ObjectReport {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrackReport {
     pub objects: Vec<ObjectReport>,
-    /// All matched tracks pooled.
+    /// All matched tracks pooled (second tracks are not).
     pub overall: Vec<HorizonError>,
     /// True objects seen in some frame but followed by no track.
     pub missed: Vec<usize>,
@@ -51,6 +59,25 @@ pub struct TrackReport {
     /// from the flows by `pins track eval --flows`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub background_flow: Option<BackgroundFlow>,
+}
+
+impl TrackReport {
+    /// Tracks that follow no object: false tracks.
+    pub fn false_tracks(&self) -> usize {
+        self.objects
+            .iter()
+            .filter(|o| o.truth_index.is_none() && o.second_on.is_none())
+            .count()
+    }
+
+    /// Tracks on an object that another track follows (it was picked up again under a new
+    /// ID, or followed twice).
+    pub fn second_tracks(&self) -> usize {
+        self.objects
+            .iter()
+            .filter(|o| o.second_on.is_some())
+            .count()
+    }
 }
 
 #[derive(Default, Clone, Copy)]
@@ -134,10 +161,24 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
     let matched = assign(&cost);
     let mut overall: BTreeMap<usize, Acc> = hs.iter().map(|&h| (h, Acc::default())).collect();
     let mut objects = Vec::new();
-    for (t, m) in tracks.objects.iter().zip(&matched) {
+    for ((t, m), row) in tracks.objects.iter().zip(&matched).zip(&cost) {
+        // A track left without an object: on the object it covers most, if that is at
+        // least half of its observed frames.
+        let observed = t.frames.iter().filter(|f| f.observed).count();
+        let second_on = match m {
+            Some(_) => None,
+            None => row
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.is_finite())
+                .min_by(|a, b| a.1.total_cmp(b.1))
+                .filter(|(_, c)| 2.0 * -**c >= observed as f64)
+                .map(|(i, _)| i),
+        };
+        let pooled = m.is_some();
         let mut acc: BTreeMap<usize, Acc> = hs.iter().map(|&h| (h, Acc::default())).collect();
         let mut centre_sum = (0.0, 0usize);
-        if let Some(i) = *m {
+        if let Some(i) = m.or(second_on) {
             for f in &t.frames {
                 if let (true, Some(c)) = (f.observed, centre(i, f.frame)) {
                     centre_sum.0 += dist(f.centroid, c);
@@ -150,7 +191,7 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
                         if let Some(a) = acc.get_mut(&h) {
                             a.add(dx, dy);
                         }
-                        if let Some(a) = overall.get_mut(&h) {
+                        if let Some(a) = overall.get_mut(&h).filter(|_| pooled) {
                             a.add(dx, dy);
                         }
                     }
@@ -160,6 +201,7 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
         objects.push(ObjectReport {
             id: t.id,
             truth_index: *m,
+            second_on,
             frames: t.frames.len(),
             centre_error: if centre_sum.1 > 0 {
                 centre_sum.0 / centre_sum.1 as f64
@@ -264,9 +306,10 @@ pub fn table(report: &TrackReport) -> String {
         );
     };
     for o in &report.objects {
-        let name = match o.truth_index {
-            Some(i) => format!("ID {} ({i})", o.id),
-            None => format!("ID {} (-)", o.id),
+        let name = match (o.truth_index, o.second_on) {
+            (Some(i), _) => format!("ID {} ({i})", o.id),
+            (None, Some(i)) => format!("ID {} ({i}')", o.id),
+            (None, None) => format!("ID {} (-)", o.id),
         };
         for e in &o.horizons {
             row(&name, e);
@@ -282,14 +325,11 @@ pub fn table(report: &TrackReport) -> String {
     if let Some(ms) = report.ms_per_frame {
         s += &format!(", {ms:.2} ms per frame");
     }
-    let spurious = report
-        .objects
-        .iter()
-        .filter(|o| o.truth_index.is_none())
-        .count();
     s += &format!(
-        ", {} tracks, {spurious} following no object",
-        report.objects.len()
+        ", {} tracks, {} following no object, {} second tracks on an object",
+        report.objects.len(),
+        report.false_tracks(),
+        report.second_tracks()
     );
     if let Some(b) = &report.background_flow {
         s += &format!(
@@ -402,5 +442,19 @@ mod tests {
         assert_eq!(r.objects[3].truth_index, None);
         assert_eq!(r.objects[2].truth_index, None);
         assert!(r.objects[2].horizons[0].rmse_2d.is_nan());
+        // The short track lies on object 0, which A and B follow: a second track, scored
+        // against it but not pooled; the far one follows nothing.
+        assert_eq!(r.objects[3].second_on, Some(0));
+        assert_eq!(r.objects[3].horizons[0].count, 2);
+        assert_eq!(r.objects[2].second_on, None);
+        assert_eq!((r.false_tracks(), r.second_tracks()), (1, 1));
+        let matched: usize = r.objects[..2].iter().map(|o| o.horizons[0].count).sum();
+        assert_eq!(r.overall[0].count, matched);
+        let text = table(&r);
+        assert!(text.contains("ID 4 (0')"), "{text}");
+        assert!(
+            text.contains("1 following no object, 1 second tracks on an object"),
+            "{text}"
+        );
     }
 }

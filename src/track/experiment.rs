@@ -250,6 +250,10 @@ pub struct ExperimentReport {
     /// (clip, predictor) → tracks that follow no object.
     #[serde(default)]
     pub spurious: Vec<(String, String, usize)>,
+    /// (clip, predictor) → second tracks: on an object another track follows (picked up
+    /// again under a new ID).
+    #[serde(default)]
+    pub second: Vec<(String, String, usize)>,
     /// (clip, predictor) → true objects followed by no track.
     #[serde(default)]
     pub missed: Vec<(String, String, Vec<usize>)>,
@@ -371,6 +375,7 @@ pub fn run(
     let mut rows = Vec::new();
     let mut switches = Vec::new();
     let mut spurious = Vec::new();
+    let mut second = Vec::new();
     let mut missed = Vec::new();
     let mut background = Vec::new();
     let mut flow_ms = Vec::new();
@@ -440,11 +445,7 @@ pub fn run(
                         point: mms_point,
                     });
                 }
-                let lost = report
-                    .objects
-                    .iter()
-                    .filter(|o| o.truth_index.is_none())
-                    .count();
+                let lost = report.false_tracks();
                 if let (Some(point), Some(ms)) = (mms_point, ms) {
                     points.push(PointRow {
                         clip: clip.name.clone(),
@@ -470,6 +471,7 @@ pub fn run(
                 }
                 switches.push((clip.name.clone(), name.clone(), report.id_switches));
                 spurious.push((clip.name.clone(), name.clone(), lost));
+                second.push((clip.name.clone(), name.clone(), report.second_tracks()));
                 missed.push((clip.name.clone(), name, report.missed.clone()));
             }
         }
@@ -481,6 +483,7 @@ pub fn run(
         rows,
         id_switches: switches,
         spurious,
+        second,
         missed,
         background_flow: background,
         points,
@@ -524,6 +527,11 @@ pub fn table(r: &ExperimentReport) -> String {
     for (c, p, n) in &r.spurious {
         if *n > 0 {
             s += &format!("{c} / {p}: {n} tracks follow no object\n");
+        }
+    }
+    for (c, p, n) in &r.second {
+        if *n > 0 {
+            s += &format!("{c} / {p}: {n} second tracks on an object another track follows\n");
         }
     }
     for (c, p, m) in &r.missed {

@@ -6,7 +6,10 @@
 //! misses, so one missed detection does not change an ID; a track that coasts out of the frame
 //! ends at once (its object has left the view). IDs are given at confirmation. When
 //! two objects merge into one region, the tracks on it coast until it splits. Each track has
-//! its own predictor.
+//! its own predictor. A track that ends is kept for a while (`reid_frames`): a new track
+//! whose colour and birthplace its object could have (DeepSORT's re-identification, with the
+//! region's mean colour as descriptor) takes its ID back, as does a new track on the object of
+//! a confirmed track that is coasting.
 
 use std::collections::VecDeque;
 
@@ -73,6 +76,16 @@ pub struct TrackerConfig {
     pub appearance_k: f64,
     pub appearance_floor: f64,
     pub appearance_px: f64,
+    /// Re-identification: a confirmed track that ended (its patience spent, or it coasted out
+    /// of the view) is remembered for this many frames after it was last seen; 0 turns
+    /// re-identification off.
+    pub reid_frames: usize,
+    /// A track being confirmed takes the ID of an ended (or a coasting) track when it was born
+    /// after that track was last seen, within `gate_px` + 2 × the track's top speed × the
+    /// frames between, and its mean colour lies within this many of the old track's standard
+    /// deviations (`appearance_floor` at least); of several, the nearest in colour. Both need
+    /// colours (frames).
+    pub reid_k: f64,
 }
 
 impl Default for TrackerConfig {
@@ -95,6 +108,8 @@ impl Default for TrackerConfig {
             appearance_k: 6.0,
             appearance_floor: 8.0,
             appearance_px: 5.0,
+            reid_frames: 150,
+            reid_k: 3.0,
         }
     }
 }
@@ -140,6 +155,47 @@ struct Track {
     areas: VecDeque<usize>,
     /// The object's colour, from its whole detections.
     appearance: Option<Appearance>,
+    /// The frame of its first detection and that detection's centre.
+    born: (usize, (f64, f64)),
+    /// The last frame with a whole detection and the filtered centre then.
+    last_seen: (usize, (f64, f64)),
+    /// The largest motion (px/frame) of its detections: the mean flow's or the aligned one.
+    top_speed: f64,
+}
+
+/// A confirmed track that ended, remembered so its object can take the ID back.
+struct Lost {
+    id: usize,
+    last_seen: (usize, (f64, f64)),
+    top_speed: f64,
+    appearance: Appearance,
+}
+
+/// What a re-identification compares: where and when a track was last seen, how fast its
+/// object went and what colour it had.
+struct Candidate<'a> {
+    last_seen: (usize, (f64, f64)),
+    top_speed: f64,
+    appearance: &'a Appearance,
+}
+
+/// The colour distance at which a new track (`born`, of colour `colour`) may be the object of
+/// `c`, or `None` where it cannot: born before `c` was last seen, farther than that object
+/// could have gone, or of another colour.
+fn reid_distance(
+    c: &Candidate,
+    born: (usize, (f64, f64)),
+    colour: [f64; 3],
+    config: &TrackerConfig,
+) -> Option<f64> {
+    let (then, at) = c.last_seen;
+    if born.0 <= then || !c.appearance.is_mature() {
+        return None;
+    }
+    let reach = config.gate_px + 2.0 * c.top_speed * (born.0 - then) as f64;
+    let dist = (born.1.0 - at.0).hypot(born.1.1 - at.1);
+    let k = c.appearance.distance(colour, config.appearance_floor);
+    (dist <= reach && k <= config.reid_k).then_some(k)
 }
 
 /// What became of one detection in the last frame (for the debug output).
@@ -149,7 +205,8 @@ pub struct Assignment {
     pub key: usize,
     /// The reported ID, when the track is confirmed.
     pub id: Option<usize>,
-    /// `new`, `tentative`, `confirmed` (this frame), `tracked`, `merged` (shared by several
+    /// `new`, `tentative`, `confirmed` (this frame), `re-identified` (confirmed this frame with
+    /// the ID of a track that ended or coasted), `tracked`, `merged` (shared by several
     /// tracks, which coast), `partial` (matched, but too small a part of the object to move
     /// the track, which coasts), or `fragment` (unmatched, beside a confirmed track: no new
     /// track).
@@ -176,6 +233,8 @@ pub struct Tracker {
     /// The frame's width and height (px), when known: a coasting track whose centre leaves it
     /// ends, since its object has left the view (or was never where the track went).
     frame_size: Option<(f64, f64)>,
+    /// Ended tracks that may be re-identified.
+    lost: Vec<Lost>,
 }
 
 impl Tracker {
@@ -212,6 +271,7 @@ impl Tracker {
             ("velocity_gate_rel", config.velocity_gate_rel),
             ("birth_exclusion_px", config.birth_exclusion_px),
             ("appearance_k", config.appearance_k),
+            ("reid_k", config.reid_k),
         ] {
             if v.is_nan() || v < 0.0 {
                 return Err(Error::invalid(
@@ -240,6 +300,7 @@ impl Tracker {
             assignments: Vec::new(),
             held: Vec::new(),
             frame_size: None,
+            lost: Vec::new(),
         })
     }
 
@@ -264,6 +325,7 @@ impl Tracker {
                 .as_ref()
                 .is_none_or(|a| a.admits(d.colour, k, floor))
         };
+        let exclusion = self.config.birth_exclusion_px;
         let cost: Vec<Vec<f64>> = self
             .tracks
             .iter()
@@ -305,7 +367,6 @@ impl Tracker {
             .filter(|&i| matches[i].is_none() && self.tracks[i].confirmed)
             .collect();
         if !orphans.is_empty() && taken.iter().any(|&t| !t) {
-            let exclusion = self.config.birth_exclusion_px;
             let second: Vec<Vec<f64>> = orphans
                 .iter()
                 .map(|&i| {
@@ -332,10 +393,13 @@ impl Tracker {
         // A merge: a confirmed track left without a detection whose prediction lies inside a
         // detection given to another track (within that region's equivalent radius). Both
         // objects are then hidden in one region, whose centre and flow belong to neither, so
-        // every track on it coasts on its own motion until the region splits again.
+        // every track on it coasts on its own motion until the region splits again. Only a
+        // track seen within the confirmation window makes one: the prediction of a track that
+        // has coasted longer is an extrapolation, not evidence of a hidden object (it would
+        // stop the other track and then take its object).
         let mut shared = vec![false; detections.len()];
         for (t, m) in self.tracks.iter().zip(&matches) {
-            if m.is_some() || !t.confirmed {
+            if m.is_some() || !t.confirmed || t.misses > self.config.confirm {
                 continue;
             }
             for (j, d) in detections.iter().enumerate() {
@@ -363,7 +427,10 @@ impl Tracker {
             .filter(|t| t.confirmed)
             .map(|t| (t.id, t.predicted))
             .collect();
-        for (t, m) in self.tracks.iter_mut().zip(&matches) {
+        // Tracks confirmed this frame: (index, its estimate's place in `out`, its detection),
+        // given their IDs after the loop, once it is known which tracks coast.
+        let mut newly: Vec<(usize, Option<usize>, Option<usize>)> = Vec::new();
+        for (i, (t, m)) in self.tracks.iter_mut().zip(&matches).enumerate() {
             let det = m.and_then(|j| {
                 used[j] = true;
                 (!shared[j]).then(|| &detections[j])
@@ -381,6 +448,12 @@ impl Tracker {
             });
             let e = t.mtp.step(frame, det.filter(|_| !partial), horizon)?;
             if let Some(d) = det.filter(|_| !partial) {
+                t.last_seen = (frame, e.centroid);
+                let aligned = d.aligned.map_or(0.0, |a| a.0.hypot(a.1));
+                let speed = d.mean_flow.0.hypot(d.mean_flow.1).max(aligned);
+                if speed.is_finite() {
+                    t.top_speed = t.top_speed.max(speed);
+                }
                 if let Some(c) = d.colour {
                     match t.appearance.as_mut() {
                         Some(a) => a.update(c),
@@ -410,16 +483,17 @@ impl Tracker {
                     .iter()
                     .find(|(_, c)| (c.0 - t.predicted.0).hypot(c.1 - t.predicted.1) <= exclusion);
                 let verdict = match beside {
+                    Some((0, _)) => Some("a fragment beside a track confirmed now".to_string()),
                     Some((id, _)) => Some(format!("a fragment beside track {id}")),
                     None => tolerance.verdict(&t.window),
                 };
                 match verdict {
                     None => {
-                        occupied.push((self.next_id, t.predicted));
+                        // Its ID is given after the loop (a new one, or one re-identified).
+                        occupied.push((0, t.predicted));
                         t.confirmed = true;
-                        t.id = self.next_id;
-                        self.next_id += 1;
                         t.window.clear();
+                        newly.push((i, None, *m));
                     }
                     Some(reason) if t.window.len() >= confirm => {
                         // Keep it tentative: the window slides, so an object whose first frames
@@ -460,6 +534,9 @@ impl Tracker {
                 continue;
             }
             if t.confirmed && t.misses <= self.config.max_coast_reported {
+                if let Some(n) = newly.last_mut().filter(|n| n.0 == i) {
+                    n.1 = Some(out.len());
+                }
                 out.push(TrackEstimate {
                     id: t.id,
                     estimate: e,
@@ -467,7 +544,58 @@ impl Tracker {
                 });
             }
         }
+        // IDs taken over from coasting tracks, whose own estimates (if reported) go.
+        let mut taken_over = Vec::new();
+        let slots: Vec<usize> = newly.iter().filter_map(|n| n.1).collect();
+        for (i, slot, j) in newly {
+            let id = match self.reidentify(i, frame) {
+                Some((id, coasting)) => {
+                    if coasting {
+                        taken_over.push(id);
+                    }
+                    if let Some(a) = j.and_then(|j| self.assignments[j].as_mut()) {
+                        a.state = "re-identified";
+                    }
+                    id
+                }
+                None => {
+                    self.next_id += 1;
+                    self.next_id - 1
+                }
+            };
+            self.tracks[i].id = id;
+            if let Some(e) = slot.and_then(|s| out.get_mut(s)) {
+                e.id = id;
+            }
+            if let Some(a) = j.and_then(|j| self.assignments[j].as_mut()) {
+                a.id = Some(id);
+            }
+        }
+        if !taken_over.is_empty() {
+            let mut n = 0;
+            out.retain(|e| {
+                n += 1;
+                slots.contains(&(n - 1)) || !taken_over.contains(&e.id)
+            });
+        }
         let patience = self.config.patience;
+        let ended = self
+            .tracks
+            .iter()
+            .filter(|t| t.confirmed && t.id != 0 && t.misses > patience);
+        for t in ended {
+            if let Some(a) = t.appearance.clone().filter(|a| a.is_mature()) {
+                self.lost.push(Lost {
+                    id: t.id,
+                    last_seen: t.last_seen,
+                    top_speed: t.top_speed,
+                    appearance: a,
+                });
+            }
+        }
+        let keep = self.config.reid_frames;
+        self.lost
+            .retain(|l| keep > 0 && frame.saturating_sub(l.last_seen.0) <= keep);
         self.tracks
             .retain(|t| t.misses <= patience && (t.confirmed || t.misses == 0));
         for (j, d) in detections.iter().enumerate() {
@@ -489,6 +617,9 @@ impl Tracker {
             let e = mtp.step(frame, Some(d), horizon)?;
             let mut t = Track {
                 id: 0,
+                born: (frame, d.centroid),
+                last_seen: (frame, e.centroid),
+                top_speed: 0.0,
                 key: self.next_key,
                 mtp,
                 window: VecDeque::from([(d.centroid, d.mean_flow)]),
@@ -522,6 +653,50 @@ impl Tracker {
         out.sort_by_key(|t| t.id);
         Ok(out)
     }
+
+    /// The ID that track `i`, confirmed in `frame`, takes back: that of the ended or coasting
+    /// track whose object it may be (`reid_distance`) and nearest to it in colour. A coasting
+    /// track that gives up its ID ends; an ended one leaves the memory.
+    fn reidentify(&mut self, i: usize, frame: usize) -> Option<(usize, bool)> {
+        if self.config.reid_frames == 0 {
+            return None;
+        }
+        let t = &self.tracks[i];
+        let colour = t.appearance.as_ref().filter(|a| a.is_mature())?.mean();
+        let born = t.born;
+        let config = &self.config;
+        let coasting = self.tracks.iter().enumerate().filter_map(|(j, o)| {
+            let c = Candidate {
+                last_seen: o.last_seen,
+                top_speed: o.top_speed,
+                appearance: o.appearance.as_ref()?,
+            };
+            let fresh = o.id == 0 || j == i || !o.confirmed || o.misses == 0;
+            let k = (!fresh && frame.saturating_sub(o.last_seen.0) <= config.reid_frames)
+                .then(|| reid_distance(&c, born, colour, config))??;
+            Some((k, Ok(j)))
+        });
+        let ended = self.lost.iter().enumerate().filter_map(|(j, l)| {
+            let c = Candidate {
+                last_seen: l.last_seen,
+                top_speed: l.top_speed,
+                appearance: &l.appearance,
+            };
+            Some((reid_distance(&c, born, colour, config)?, Err(j)))
+        });
+        let best = coasting.chain(ended).min_by(|a, b| a.0.total_cmp(&b.0))?;
+        Some(match best.1 {
+            Ok(j) => {
+                let o = &mut self.tracks[j];
+                let id = o.id;
+                // It gives its ID up and ends (not remembered: its object is found).
+                o.id = 0;
+                o.misses = usize::MAX;
+                (id, true)
+            }
+            Err(j) => (self.lost.swap_remove(j).id, false),
+        })
+    }
 }
 
 /// True when `point` lies within the equivalent radius √(area/π) of region `d`.
@@ -539,8 +714,8 @@ mod tests {
             colour: None,
             pixels: 40,
             centroid: (x, y),
-            speed: vx.abs(),
-            direction: Some(if vx >= 0.0 { 0.0 } else { std::f64::consts::PI }),
+            speed: vx.hypot(vy),
+            direction: Some(vy.atan2(vx)),
             bbox: [0, 0, 1, 1],
             mean_flow: (vx, vy),
             placed: None,
@@ -600,6 +775,150 @@ mod tests {
             ..TrackerConfig::default()
         });
         assert!(on_b.iter().any(|&(_, id)| id == 1), "B: {on_b:?}");
+    }
+
+    /// Per frame, the IDs reported on a red object A and on a green object B (within 4 px).
+    type Seen = (Vec<(usize, usize)>, Vec<(usize, usize)>);
+
+    /// A (red, 3 px/frame to the right) is seen in frames 0–19, hidden in 20–`back` − 1 and
+    /// seen again from frame `back`, `jump` px below where it went and moving by `v` px/frame
+    /// (it turned behind the occluder); B (green) enters at frame 60 far away. Returns the
+    /// IDs seen on each.
+    fn hide_and_return(config: TrackerConfig, back: usize, jump: f64, v: (f64, f64)) -> Seen {
+        let red = |n: usize| [200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
+        let green = |n: usize| [40.0, 190.0 + (n % 2) as f64, 60.0];
+        let mut tr = Tracker::new(config).unwrap();
+        let (mut on_a, mut on_b) = (Vec::new(), Vec::new());
+        for n in 0..back + 40 {
+            let a = if n < back {
+                (20.0 + 3.0 * n as f64, 50.0)
+            } else {
+                let k = (n - back) as f64;
+                (20.0 + 3.0 * back as f64 + v.0 * k, 50.0 + jump + v.1 * k)
+            };
+            let va = if n < back { (3.0, 0.0) } else { v };
+            let b = (300.0 - 2.0 * n as f64, 300.0);
+            let mut dets = Vec::new();
+            if n < 20 || n >= back {
+                dets.push(Region {
+                    colour: Some(red(n)),
+                    ..det(a.0, a.1, va.0, va.1)
+                });
+            }
+            if n >= 60 {
+                dets.push(Region {
+                    colour: Some(green(n)),
+                    ..det(b.0, b.1, -2.0, 0.0)
+                });
+            }
+            let out = tr.step(n, &dets, 1).unwrap();
+            let mut ids: Vec<usize> = out.iter().map(|t| t.id).collect();
+            ids.dedup();
+            assert_eq!(ids.len(), out.len(), "an ID reported twice in frame {n}");
+            for t in &out {
+                let (x, y) = t.estimate.centroid;
+                if (x - a.0).hypot(y - a.1) < 4.0 {
+                    on_a.push((n, t.id));
+                }
+                if (x - b.0).hypot(y - b.1) < 4.0 {
+                    on_b.push((n, t.id));
+                }
+            }
+        }
+        (on_a, on_b)
+    }
+
+    #[test]
+    fn an_object_seen_again_takes_its_id_back_and_another_one_does_not() {
+        // Hidden for 40 frames, longer than the patience: the track ended, and its ID waits.
+        let (on_a, on_b) = hide_and_return(TrackerConfig::default(), 60, 20.0, (3.0, 0.0));
+        assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+        assert!(on_a.iter().any(|&(n, _)| n >= 70), "A seen again: {on_a:?}");
+        assert!(on_b.iter().all(|&(_, id)| id == 2), "B: {on_b:?}");
+        // Without re-identification A comes back as a new object.
+        let off = TrackerConfig {
+            reid_frames: 0,
+            ..TrackerConfig::default()
+        };
+        let (on_a, _) = hide_and_return(off, 60, 20.0, (3.0, 0.0));
+        assert!(
+            on_a.iter().any(|&(n, id)| n >= 70 && id != 1),
+            "A: {on_a:?}"
+        );
+        // Beyond the memory (150 frames), or farther than A could have gone, a new ID.
+        let (on_a, _) = hide_and_return(TrackerConfig::default(), 200, 20.0, (3.0, 0.0));
+        assert!(
+            on_a.iter().any(|&(n, id)| n >= 200 && id != 1),
+            "A: {on_a:?}"
+        );
+        let (on_a, _) = hide_and_return(TrackerConfig::default(), 30, 300.0, (3.0, 0.0));
+        assert!(
+            on_a.iter().any(|&(n, id)| n >= 40 && id != 1),
+            "A: {on_a:?}"
+        );
+    }
+
+    #[test]
+    fn a_new_track_on_a_coasting_tracks_object_takes_its_id_and_it_ends() {
+        // Hidden for 6 frames, then 45 px below its path and moving down: too far for the
+        // second association and too different in motion for the gate of A's coasting track,
+        // so a new track starts on A and is confirmed while A's track still coasts.
+        let (on_a, _) = hide_and_return(TrackerConfig::default(), 26, 45.0, (0.0, 3.0));
+        assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+        assert!(on_a.iter().any(|&(n, _)| n >= 40), "A seen again: {on_a:?}");
+        let off = TrackerConfig {
+            reid_frames: 0,
+            ..TrackerConfig::default()
+        };
+        let (on_a, _) = hide_and_return(off, 26, 45.0, (0.0, 3.0));
+        assert!(on_a.iter().any(|&(_, id)| id != 1), "A: {on_a:?}");
+        // With coasting tracks reported, the old track's estimate goes when its ID is taken.
+        let (on_a, _) = hide_and_return(
+            TrackerConfig {
+                max_coast_reported: 15,
+                ..TrackerConfig::default()
+            },
+            26,
+            45.0,
+            (0.0, 3.0),
+        );
+        assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+    }
+
+    /// A (red) is lost at frame 10 and its track coasts on at 3 px/frame; its prediction then
+    /// runs through B (green, 1 px/frame, tracked all along) in frames 20–30. A prediction that no detection
+    /// has checked for longer than the confirmation window is no hidden object: B is not
+    /// declared merged (which would make it coast) and keeps being measured.
+    #[test]
+    fn a_long_coasting_track_does_not_stop_the_track_it_runs_into() {
+        let red = [200.0, 40.0, 40.0];
+        let green = [40.0, 190.0, 60.0];
+        let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
+        let mut b_unmeasured = Vec::new();
+        for n in 0..40 {
+            let mut dets = vec![Region {
+                colour: Some(green),
+                pixels: 400,
+                ..det(70.0 + n as f64, 50.0, 1.0, 0.0)
+            }];
+            if n < 10 {
+                dets.push(Region {
+                    colour: Some(red),
+                    ..det(20.0 + 3.0 * n as f64, 50.0, 3.0, 0.0)
+                });
+            }
+            let out = tr.step(n, &dets, 1).unwrap();
+            for t in &out {
+                if (t.estimate.centroid.0 - (70.0 + n as f64)).abs() < 4.0 && !t.observed {
+                    b_unmeasured.push(n);
+                }
+            }
+            if n >= 12 {
+                let state = tr.assignments[0].as_ref().map(|a| a.state);
+                assert_eq!(state, Some("tracked"), "B in frame {n}");
+            }
+        }
+        assert!(b_unmeasured.is_empty(), "B coasted in {b_unmeasured:?}");
     }
 
     #[test]
