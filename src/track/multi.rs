@@ -59,7 +59,8 @@ pub struct TrackerConfig {
     /// A matched detection smaller than this fraction of the track's median area over its
     /// last `area_window` observations is a fragment of the object (part of it moves in an
     /// estimated flow): it keeps the track alive, but its centre, which can lie anywhere on
-    /// the object, does not move the track, which coasts through that frame. 0 turns it off.
+    /// the object, does not move the track, which coasts through that frame. A region placed
+    /// on the frame (`Region::placed`) is never a fragment. 0 turns it off.
     pub partial_area_ratio: f64,
     pub area_window: usize,
     /// A track that has coasted (no detection) for more than this many consecutive frames is
@@ -442,9 +443,13 @@ impl Tracker {
                         .iter()
                         .zip(&shared)
                         .any(|(d, &s)| s && covers(d, t.predicted)));
+            // A region placed on the frame's foreground has its centre on the object (the
+            // placement refuses a centre that moves more than half the region's radius): it
+            // is not a fragment, however small against the track's earlier (smeared) regions.
             let partial = det.is_some_and(|d| {
-                median(&t.areas)
-                    .is_some_and(|a| (d.pixels as f64) < self.config.partial_area_ratio * a)
+                d.placed.is_none()
+                    && median(&t.areas)
+                        .is_some_and(|a| (d.pixels as f64) < self.config.partial_area_ratio * a)
             });
             let e = t.mtp.step(frame, det.filter(|_| !partial), horizon)?;
             if let Some(d) = det.filter(|_| !partial) {
@@ -1051,7 +1056,7 @@ mod tests {
         // An object of 400 px moving 3 px/frame along y = 50; every 4th frame from 10 on only
         // a 40 px fragment of it is found, 12 px off its centre (part of it moved in an
         // estimated flow).
-        let run = |ratio: f64| {
+        let run = |ratio: f64, placed: bool| {
             let mut tr = Tracker::new(TrackerConfig {
                 partial_area_ratio: ratio,
                 ..TrackerConfig::default()
@@ -1065,6 +1070,8 @@ mod tests {
                 d.pixels = 400;
                 if n >= 10 && n % 4 == 0 {
                     d = det(x + 4.0, 62.0, 3.0, 0.0);
+                    // The placement, when it ran, found the object's centre from the frames.
+                    d.placed = placed.then_some((x, 50.0));
                 }
                 let out = tr.step(n, &[d], 3).unwrap();
                 states.push(tr.assignments[0].as_ref().map(|a| a.state));
@@ -1076,9 +1083,13 @@ mod tests {
             }
             (worst, states)
         };
-        let (coasting, states) = run(0.35);
-        let (following, _) = run(0.0);
+        let (coasting, states) = run(0.35, false);
+        let (following, _) = run(0.0, false);
         assert!(states.contains(&Some("partial")), "{states:?}");
+        // A small region placed on the object is whole: it moves the track, to the right place.
+        let (placed, states) = run(0.35, true);
+        assert!(!states.contains(&Some("partial")), "{states:?}");
+        assert!(placed < 1.0, "the track strays {placed} px from the object");
         assert!(
             coasting < 1.0,
             "the track strays {coasting} px from the object"
