@@ -20,6 +20,7 @@ pub mod noise_floor;
 pub mod photometric;
 pub mod points;
 pub mod predict;
+pub mod reid;
 pub mod roi;
 pub mod run;
 pub mod static_flow;

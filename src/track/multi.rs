@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::appearance::Appearance;
 use super::hungarian::assign;
 use super::mtp::{Estimate, Mtp, MtpConfig};
+use super::reid::{Candidate, Lost, reid_distance};
 use super::roi::Region;
 use crate::error::{Error, Result};
 
@@ -162,41 +163,6 @@ struct Track {
     last_seen: (usize, (f64, f64)),
     /// The largest motion (px/frame) of its detections: the mean flow's or the aligned one.
     top_speed: f64,
-}
-
-/// A confirmed track that ended, remembered so its object can take the ID back.
-struct Lost {
-    id: usize,
-    last_seen: (usize, (f64, f64)),
-    top_speed: f64,
-    appearance: Appearance,
-}
-
-/// What a re-identification compares: where and when a track was last seen, how fast its
-/// object went and what colour it had.
-struct Candidate<'a> {
-    last_seen: (usize, (f64, f64)),
-    top_speed: f64,
-    appearance: &'a Appearance,
-}
-
-/// The colour distance at which a new track (`born`, of colour `colour`) may be the object of
-/// `c`, or `None` where it cannot: born before `c` was last seen, farther than that object
-/// could have gone, or of another colour.
-fn reid_distance(
-    c: &Candidate,
-    born: (usize, (f64, f64)),
-    colour: [f64; 3],
-    config: &TrackerConfig,
-) -> Option<f64> {
-    let (then, at) = c.last_seen;
-    if born.0 <= then || !c.appearance.is_mature() {
-        return None;
-    }
-    let reach = config.gate_px + 2.0 * c.top_speed * (born.0 - then) as f64;
-    let dist = (born.1.0 - at.0).hypot(born.1.1 - at.1);
-    let k = c.appearance.distance(colour, config.appearance_floor);
-    (dist <= reach && k <= config.reid_k).then_some(k)
 }
 
 /// What became of one detection in the last frame (for the debug output).
@@ -670,6 +636,7 @@ impl Tracker {
         let colour = t.appearance.as_ref().filter(|a| a.is_mature())?.mean();
         let born = t.born;
         let config = &self.config;
+        let (gate, floor, k) = (config.gate_px, config.appearance_floor, config.reid_k);
         let coasting = self.tracks.iter().enumerate().filter_map(|(j, o)| {
             let c = Candidate {
                 last_seen: o.last_seen,
@@ -678,7 +645,7 @@ impl Tracker {
             };
             let fresh = o.id == 0 || j == i || !o.confirmed || o.misses == 0;
             let k = (!fresh && frame.saturating_sub(o.last_seen.0) <= config.reid_frames)
-                .then(|| reid_distance(&c, born, colour, config))??;
+                .then(|| reid_distance(&c, born, colour, gate, floor, k))??;
             Some((k, Ok(j)))
         });
         let ended = self.lost.iter().enumerate().filter_map(|(j, l)| {
@@ -687,7 +654,7 @@ impl Tracker {
                 top_speed: l.top_speed,
                 appearance: &l.appearance,
             };
-            Some((reid_distance(&c, born, colour, config)?, Err(j)))
+            Some((reid_distance(&c, born, colour, gate, floor, k)?, Err(j)))
         });
         let best = coasting.chain(ended).min_by(|a, b| a.0.total_cmp(&b.0))?;
         Some(match best.1 {

@@ -1,0 +1,95 @@
+//! Re-identification (Note S13's many objects; DeepSORT's, with the region's mean colour as
+//! the descriptor): a confirmed track that ended, or that coasts, may be the object a new
+//! track has found again. It is, where the new track was born after the old one was last
+//! seen, within the distance its object could have gone since, and with its colour.
+
+use super::appearance::Appearance;
+
+/// A confirmed track that ended, remembered so its object can take the ID back.
+pub(crate) struct Lost {
+    pub id: usize,
+    /// The last frame with a whole detection and the filtered centre then.
+    pub last_seen: (usize, (f64, f64)),
+    /// The largest motion of its detections (px/frame).
+    pub top_speed: f64,
+    pub appearance: Appearance,
+}
+
+/// What a re-identification compares of an old track: where and when it was last seen, how
+/// fast its object went and what colour it had.
+pub(crate) struct Candidate<'a> {
+    pub last_seen: (usize, (f64, f64)),
+    pub top_speed: f64,
+    pub appearance: &'a Appearance,
+}
+
+/// The colour distance (standard deviations of the old track's colour, each at least
+/// `floor` levels) at which a new track, first detected at `born` (frame, centre) with mean
+/// colour `colour`, may be the object of `c`; `None` where it cannot: born before `c` was
+/// last seen, farther than `gate_px` + 2 × `c`'s top speed × the frames between, or more than
+/// `k` from its colour. An old track with too few colours is never re-identified.
+pub(crate) fn reid_distance(
+    c: &Candidate,
+    born: (usize, (f64, f64)),
+    colour: [f64; 3],
+    gate_px: f64,
+    floor: f64,
+    k: f64,
+) -> Option<f64> {
+    let (then, at) = c.last_seen;
+    if born.0 <= then || !c.appearance.is_mature() {
+        return None;
+    }
+    let reach = gate_px + 2.0 * c.top_speed * (born.0 - then) as f64;
+    let dist = (born.1.0 - at.0).hypot(born.1.1 - at.1);
+    let d = c.appearance.distance(colour, floor);
+    (dist <= reach && d <= k).then_some(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn red() -> Appearance {
+        let mut a = Appearance::new([200.0, 40.0, 40.0]);
+        for n in 0..10 {
+            a.update([200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64]);
+        }
+        a
+    }
+
+    #[test]
+    fn a_new_track_is_the_old_object_only_if_it_could_have_got_there_in_its_colour() {
+        let a = red();
+        // Last seen at frame 20 at (100, 100), at most 3 px/frame: 40 + 6 px per frame.
+        let c = Candidate {
+            last_seen: (20, (100.0, 100.0)),
+            top_speed: 3.0,
+            appearance: &a,
+        };
+        let score = |born, colour| reid_distance(&c, born, colour, 40.0, 8.0, 3.0);
+        let same = [201.0, 41.0, 39.0];
+        // Ten frames later, 90 px away (within 100): its colour, a small distance.
+        let d = score((30, (190.0, 100.0)), same).expect("re-identified");
+        assert!(d < 0.5, "{d}");
+        // 110 px away is farther than it could have gone; born before it was last seen, or in
+        // the frame it was, it is another object.
+        assert_eq!(score((30, (210.0, 100.0)), same), None);
+        assert_eq!(score((20, (101.0, 100.0)), same), None);
+        assert_eq!(score((15, (101.0, 100.0)), same), None);
+        // Green, where it could be: not it.
+        assert_eq!(score((30, (120.0, 100.0)), [40.0, 190.0, 60.0]), None);
+        // 30 levels off in red: 3.75 floors, over 3.
+        assert_eq!(score((30, (120.0, 100.0)), [230.0, 40.0, 40.0]), None);
+        // An old track with fewer than five colours is never re-identified.
+        let young = Appearance::new([200.0, 40.0, 40.0]);
+        let c = Candidate {
+            appearance: &young,
+            ..c
+        };
+        assert_eq!(
+            reid_distance(&c, (30, (120.0, 100.0)), same, 40.0, 8.0, 3.0),
+            None
+        );
+    }
+}
