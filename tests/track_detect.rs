@@ -8,14 +8,12 @@
 use std::path::Path;
 
 use pins::Flow;
-use pins::dataset::sequence::{SequenceConfig, render_sequence};
-use pins::scene::trajectory::{ObjectSpec, PathKind, TrajectoryConfig};
 use pins::scene::truth::Truth;
 use pins::track::eval::{TrackReport, evaluate};
 use pins::track::run::Tracks;
 
 mod common;
-use common::{ok, pins};
+use common::{ok, pins, render_disc_line};
 
 const FRAMES: usize = 24;
 
@@ -27,24 +25,7 @@ fn render(dir: &Path, seed: u64) -> Truth {
 /// Renders a 160×120 clip of one disc of radius 10 on a line between two points (fractions of
 /// the frame).
 fn render_line(dir: &Path, seed: u64, from: [f64; 2], to: [f64; 2]) -> Truth {
-    let cfg = SequenceConfig {
-        scene: TrajectoryConfig {
-            width: 160,
-            height: 120,
-            frames: FRAMES,
-            seed,
-            objects: vec![ObjectSpec {
-                path: PathKind::Line,
-                radius: 10.0,
-                from,
-                to,
-                ..ObjectSpec::default()
-            }],
-            ..TrajectoryConfig::default()
-        },
-        ..SequenceConfig::default()
-    };
-    render_sequence(&cfg, dir).unwrap()
+    render_disc_line(dir, seed, FRAMES, from, to)
 }
 
 /// Spurious blobs of flow on the still background (radius 9, 2–3 px in a direction that turns

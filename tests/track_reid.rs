@@ -7,14 +7,12 @@
 
 use std::path::Path;
 
-use pins::dataset::sequence::{SequenceConfig, render_sequence};
-use pins::scene::trajectory::{ObjectSpec, PathKind, TrajectoryConfig};
 use pins::scene::truth::Truth;
 use pins::track::eval::{TrackReport, evaluate};
 use pins::track::run::Tracks;
 
 mod common;
-use common::{ok, pins};
+use common::{ok, pins, render_disc_line};
 
 const FRAMES: usize = 60;
 /// The frames (pairs) whose flow is blanked: longer than the tracker's patience of 15.
@@ -22,24 +20,7 @@ const HIDDEN: std::ops::Range<usize> = 15..35;
 
 /// Renders a 160×120 clip of one disc of radius 10 crossing the frame at about 2 px/frame.
 fn render(dir: &Path, seed: u64) -> Truth {
-    let cfg = SequenceConfig {
-        scene: TrajectoryConfig {
-            width: 160,
-            height: 120,
-            frames: FRAMES,
-            seed,
-            objects: vec![ObjectSpec {
-                path: PathKind::Line,
-                radius: 10.0,
-                from: [0.1, 0.45],
-                to: [0.9, 0.6],
-                ..ObjectSpec::default()
-            }],
-            ..TrajectoryConfig::default()
-        },
-        ..SequenceConfig::default()
-    };
-    render_sequence(&cfg, dir).unwrap()
+    render_disc_line(dir, seed, FRAMES, [0.1, 0.45], [0.9, 0.6])
 }
 
 /// The exact flows, with those of `HIDDEN` set to zero everywhere.

@@ -68,6 +68,37 @@ pub fn tiny_dataset(
     out
 }
 
+/// Renders a 160×120 clip of `frames` frames through the default camera: one disc of radius
+/// 10 on a line between two points (fractions of the frame), with its exact flow and truth.
+pub fn render_disc_line(
+    dir: &std::path::Path,
+    seed: u64,
+    frames: usize,
+    from: [f64; 2],
+    to: [f64; 2],
+) -> pins::scene::truth::Truth {
+    use pins::dataset::sequence::{SequenceConfig, render_sequence};
+    use pins::scene::trajectory::{ObjectSpec, PathKind, TrajectoryConfig};
+    let cfg = SequenceConfig {
+        scene: TrajectoryConfig {
+            width: 160,
+            height: 120,
+            frames,
+            seed,
+            objects: vec![ObjectSpec {
+                path: PathKind::Line,
+                radius: 10.0,
+                from,
+                to,
+                ..ObjectSpec::default()
+            }],
+            ..TrajectoryConfig::default()
+        },
+        ..SequenceConfig::default()
+    };
+    render_sequence(&cfg, dir).expect("render the clip")
+}
+
 /// Every f32 tensor of a safetensors file, by name (sorted).
 pub fn safetensors_f32(path: &std::path::Path) -> Vec<(String, Vec<f32>)> {
     let bytes = std::fs::read(path).unwrap();
