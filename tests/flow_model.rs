@@ -280,12 +280,24 @@ fn warm_start_is_used_and_zero_start_changes_nothing() {
         }
     }
     let from_start = predict_flow_from(&model, &cfg, &a, &b, 3, &dev, Some(&start)).unwrap();
-    // An untrained update adds small steps: the start's 8 px stay in the estimate.
-    let mean_u: f32 = from_start.u().iter().sum::<f32>() / from_start.u().len() as f32;
-    let plain_u: f32 = plain.u().iter().sum::<f32>() / plain.u().len() as f32;
+    // An untrained update adds small steps: the start's (8, -4) px stay in the estimate. Only
+    // pixels whose 1/8 cell has all eight neighbours count: convex upsampling (RAFT's) pads
+    // the coarse grid with zeros, and an untrained mask, near uniform, shrinks the flow of the
+    // border cells by up to a half (over the whole 40×56 image the mean comes out ~0.78 × 8).
+    // Over 60 initialisations the interior mean moved by 7.5..8.4 px.
+    let (mut du, mut dv, mut n) = (0.0f32, 0.0f32, 0.0f32);
+    for y in 8..32 {
+        for x in 8..48 {
+            let (s, p) = (from_start.get(y, x), plain.get(y, x));
+            du += s.0 - p.0;
+            dv += s.1 - p.1;
+            n += 1.0;
+        }
+    }
+    let (du, dv) = (du / n, dv / n);
     assert!(
-        (mean_u - plain_u - 8.0).abs() < 2.0,
-        "{mean_u} against {plain_u}"
+        (du - 8.0).abs() < 1.5 && (dv + 4.0).abs() < 1.5,
+        "the start moved the interior by ({du}, {dv}), not about (8, -4)"
     );
     let e = predict_flow_from(&model, &cfg, &a, &b, 3, &dev, Some(&Flow::zeros(40, 55)))
         .unwrap_err()
