@@ -5,7 +5,10 @@
 //! each true object, how often the track covering it changes. A track the matching leaves
 //! without an object is a *second track* when it lies on one object in at least half of its
 //! observed frames (that object picked up again under a new ID, as MOT's fragmentations),
-//! and *follows no object* otherwise (a false track).
+//! and *follows no object* otherwise (a false track). How much of each object the tracks
+//! cover is MOTChallenge's: the share of its frames in view on which some track lies on it
+//! (recall), mostly tracked (≥ 80 %), partially, or mostly lost (< 20 %); how well the IDs
+//! hold is IDF1 (Ristani et al. 2016) over the same global matching.
 
 use std::collections::BTreeMap;
 
@@ -45,6 +48,34 @@ pub struct ObjectReport {
     pub horizons: Vec<HorizonError>,
 }
 
+/// One true object's coverage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectCoverage {
+    pub index: usize,
+    /// Frames with a flow to the next (0..N − 1, or 0..N where the tracks have a record for
+    /// frame N − 1) in which the object is in view ...
+    pub in_view: usize,
+    /// ... and those on which an observed track lies on it (centre within its radius, CLEAR
+    /// MOT's one-to-one matching), whatever its ID.
+    pub tracked: usize,
+}
+
+/// How much of the objects the tracks cover and how well their IDs hold.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Coverage {
+    pub objects: Vec<ObjectCoverage>,
+    /// Objects tracked in at least 80 % of their frames in view, in 20–80 %, in under 20 %
+    /// (MOTChallenge's MT, PT, ML); objects never in view are left out.
+    pub mostly_tracked: usize,
+    pub partially_tracked: usize,
+    pub mostly_lost: usize,
+    /// Tracked object frames over object frames in view.
+    pub recall: f64,
+    /// 2 IDTP / (object frames in view + observed track frames), IDTP being the frames on
+    /// which a track lies on the object the global matching gave it.
+    pub idf1: f64,
+}
+
 /// `pins track eval`'s report.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrackReport {
@@ -59,6 +90,8 @@ pub struct TrackReport {
     /// from the flows by `pins track eval --flows`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub background_flow: Option<BackgroundFlow>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<Coverage>,
 }
 
 impl TrackReport {
@@ -215,20 +248,84 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
     let missed = (0..truth.objects.len())
         .filter(|i| !followed.contains(i) && truth.objects[*i].visible.iter().any(|&v| v))
         .collect();
+    let (id_switches, tracked) = clear_mot(tracks, truth);
+    // Frame N − 1 has no flow to a next frame, so tracks have no record there, unless these
+    // tracks do.
+    let last = tracks
+        .objects
+        .iter()
+        .flat_map(|t| &t.frames)
+        .filter(|f| f.observed)
+        .map(|f| f.frame + 1)
+        .max()
+        .unwrap_or(0);
+    let span = last.clamp(truth.frames.saturating_sub(1), truth.frames);
+    // IDTP: the hits of the matched pairs; every observed track frame is a prediction.
+    let idtp: f64 = matched
+        .iter()
+        .zip(&cost)
+        .filter_map(|(m, row)| m.map(|i| -row[i]))
+        .sum();
+    let predictions = tracks
+        .objects
+        .iter()
+        .flat_map(|t| &t.frames)
+        .filter(|f| f.observed)
+        .count();
     Ok(TrackReport {
         objects,
         overall: overall.iter().map(|(&h, a)| a.error(h)).collect(),
         missed,
-        id_switches: id_switches(tracks, truth),
+        id_switches,
         ms_per_frame: tracks.ms_per_frame,
         background_flow: tracks.background_flow.clone(),
+        coverage: Some(coverage(truth, span, &tracked, idtp, predictions)),
     })
+}
+
+/// The coverage of each object over frames 0..`span` from its tracked frames (`clear_mot`),
+/// and IDF1 from the matched pairs' hits (`idtp`) and the observed track frames
+/// (`predictions`).
+fn coverage(
+    truth: &Truth,
+    span: usize,
+    tracked: &[usize],
+    idtp: f64,
+    predictions: usize,
+) -> Coverage {
+    let objects: Vec<ObjectCoverage> = truth
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| ObjectCoverage {
+            index: i,
+            in_view: o.visible.iter().take(span).filter(|&&v| v).count(),
+            tracked: tracked[i],
+        })
+        .collect();
+    let seen: Vec<f64> = objects
+        .iter()
+        .filter(|o| o.in_view > 0)
+        .map(|o| o.tracked as f64 / o.in_view as f64)
+        .collect();
+    let in_view: usize = objects.iter().map(|o| o.in_view).sum();
+    let tracked: usize = objects.iter().map(|o| o.tracked).sum();
+    let ratio = |a: f64, b: usize| if b > 0 { a / b as f64 } else { f64::NAN };
+    Coverage {
+        mostly_tracked: seen.iter().filter(|&&r| r >= 0.8).count(),
+        partially_tracked: seen.iter().filter(|&&r| (0.2..0.8).contains(&r)).count(),
+        mostly_lost: seen.iter().filter(|&&r| r < 0.2).count(),
+        recall: ratio(tracked as f64, in_view),
+        idf1: ratio(2.0 * idtp, in_view + predictions),
+        objects,
+    }
 }
 
 /// ID switches as CLEAR MOT counts them: in every frame, true objects and observed tracks are
 /// matched one to one (centre within the object's radius), keeping last frame's pairs that
 /// still hold; an object matched to a different track than at its last match is a switch.
-fn id_switches(tracks: &Tracks, truth: &Truth) -> usize {
+/// Also each object's frames with a match (its tracked frames).
+fn clear_mot(tracks: &Tracks, truth: &Truth) -> (usize, Vec<usize>) {
     let mut by_frame: BTreeMap<usize, Vec<(usize, [f64; 2])>> = BTreeMap::new();
     for t in &tracks.objects {
         for f in t.frames.iter().filter(|f| f.observed) {
@@ -241,6 +338,7 @@ fn id_switches(tracks: &Tracks, truth: &Truth) -> usize {
     let objects = &truth.objects;
     let mut last: Vec<Option<usize>> = vec![None; objects.len()];
     let mut switches = 0;
+    let mut tracked = vec![0usize; objects.len()];
     for n in 0..truth.frames {
         let Some(dets) = by_frame.get(&n) else {
             continue;
@@ -287,10 +385,11 @@ fn id_switches(tracks: &Tracks, truth: &Truth) -> usize {
                     switches += 1;
                 }
                 last[i] = Some(id);
+                tracked[i] += 1;
             }
         }
     }
-    switches
+    (switches, tracked)
 }
 
 /// The report as a text table (Table S5 layout, with a count column).
@@ -331,6 +430,16 @@ pub fn table(report: &TrackReport) -> String {
         report.false_tracks(),
         report.second_tracks()
     );
+    if let Some(c) = &report.coverage {
+        s += &format!(
+            "\ncoverage {:.1} % of object frames; mostly tracked {}, partially {}, mostly lost {}; IDF1 {:.3}",
+            100.0 * c.recall,
+            c.mostly_tracked,
+            c.partially_tracked,
+            c.mostly_lost,
+            c.idf1
+        );
+    }
     if let Some(b) = &report.background_flow {
         s += &format!(
             "\nbackground flow over static pixels: mean {:.3} px, p99 {:.3} px, max {:.2} px ({} frames)",
@@ -408,6 +517,42 @@ mod tests {
         assert_eq!(r.objects[1].horizons[0].rmse_2d, 0.0);
         assert!((r.overall[0].rmse_2d - 9f64.sqrt()).abs() < 1e-12);
         assert_eq!((r.id_switches, r.missed.len()), (0, 0));
+        // Both objects followed by one track each, in every frame: IDF1 1.
+        let c = r.coverage.unwrap();
+        assert_eq!((c.mostly_tracked, c.recall, c.idf1), (2, 1.0, 1.0));
+    }
+
+    /// Over a clip's 19 frames with a flow (records 0..=18), an object tracked in 5 is
+    /// partially tracked, one tracked in 2 mostly lost; recall and IDF1 follow by hand.
+    #[test]
+    fn coverage_counts_the_frames_a_track_lies_on_an_object() {
+        let mut a = track(1, 20.0, 0.0);
+        a.frames.truncate(5);
+        let mut b = track(2, 60.0, 0.0);
+        b.frames.truncate(2);
+        // A third track lies 30 px off object 1 for 4 frames: no hit.
+        let mut off = track(3, 90.0, 0.0);
+        off.frames.truncate(4);
+        let r = evaluate(
+            &Tracks {
+                objects: vec![a, b, off],
+                ms_per_frame: None,
+                background_flow: None,
+            },
+            &truth(),
+        )
+        .unwrap();
+        let c = r.coverage.unwrap();
+        assert_eq!(
+            c.objects.iter().map(|o| o.tracked).collect::<Vec<_>>(),
+            vec![5, 2]
+        );
+        assert_eq!(
+            (c.mostly_tracked, c.partially_tracked, c.mostly_lost),
+            (0, 1, 1)
+        );
+        assert!((c.recall - 7.0 / 38.0).abs() < 1e-12);
+        assert!((c.idf1 - 14.0 / (38.0 + 11.0)).abs() < 1e-12, "{}", c.idf1);
     }
 
     #[test]
@@ -450,8 +595,27 @@ mod tests {
         assert_eq!((r.false_tracks(), r.second_tracks()), (1, 1));
         let matched: usize = r.objects[..2].iter().map(|o| o.horizons[0].count).sum();
         assert_eq!(r.overall[0].count, matched);
+        // Coverage: these tracks have a record for every one of the 20 frames; A and B cover
+        // both objects in all of them; the far track covers nothing. IDF1: each of A and B
+        // lies on its matched object in 10 of its 20 frames; the short track's 2 and the far
+        // track's 20 observed frames are predictions too: 2 · 20 / (40 + 62).
+        let c = r.coverage.as_ref().expect("coverage");
+        assert_eq!(
+            c.objects
+                .iter()
+                .map(|o| (o.in_view, o.tracked))
+                .collect::<Vec<_>>(),
+            vec![(20, 20), (20, 20)]
+        );
+        assert_eq!(
+            (c.mostly_tracked, c.partially_tracked, c.mostly_lost),
+            (2, 0, 0)
+        );
+        assert!((c.recall - 1.0).abs() < 1e-12);
+        assert!((c.idf1 - 40.0 / 102.0).abs() < 1e-12, "{}", c.idf1);
         let text = table(&r);
         assert!(text.contains("ID 4 (0')"), "{text}");
+        assert!(text.contains("IDF1 0.392"), "{text}");
         assert!(
             text.contains("1 following no object, 1 second tracks on an object"),
             "{text}"

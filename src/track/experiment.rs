@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::detect::DetectConfig;
-use super::eval::{HorizonError, evaluate};
+use super::eval::{Coverage, HorizonError, evaluate};
 use super::mtp::MtpConfig;
 use super::multi::TrackerConfig;
 use super::photometric::{GreyFrame, GreyPair};
@@ -257,6 +257,9 @@ pub struct ExperimentReport {
     /// (clip, predictor) → true objects followed by no track.
     #[serde(default)]
     pub missed: Vec<(String, String, Vec<usize>)>,
+    /// (clip, predictor) → how much of the objects the tracks cover and IDF1.
+    #[serde(default)]
+    pub coverage: Vec<(String, String, Coverage)>,
     /// Clip → background-flow magnitude of its flows.
     #[serde(default)]
     pub background_flow: Vec<(String, BackgroundFlow)>,
@@ -377,6 +380,7 @@ pub fn run(
     let mut spurious = Vec::new();
     let mut second = Vec::new();
     let mut missed = Vec::new();
+    let mut coverage = Vec::new();
     let mut background = Vec::new();
     let mut flow_ms = Vec::new();
     let mut points = Vec::new();
@@ -472,7 +476,10 @@ pub fn run(
                 switches.push((clip.name.clone(), name.clone(), report.id_switches));
                 spurious.push((clip.name.clone(), name.clone(), lost));
                 second.push((clip.name.clone(), name.clone(), report.second_tracks()));
-                missed.push((clip.name.clone(), name, report.missed.clone()));
+                missed.push((clip.name.clone(), name.clone(), report.missed.clone()));
+                if let Some(c) = report.coverage {
+                    coverage.push((clip.name.clone(), name, c));
+                }
             }
         }
     }
@@ -485,6 +492,7 @@ pub fn run(
         spurious,
         second,
         missed,
+        coverage,
         background_flow: background,
         points,
     })
@@ -538,6 +546,16 @@ pub fn table(r: &ExperimentReport) -> String {
         if !m.is_empty() {
             s += &format!("{c} / {p}: missed objects {m:?}\n");
         }
+    }
+    for (c, p, v) in &r.coverage {
+        s += &format!(
+            "{c} / {p}: coverage {:.1} % (mostly tracked {}, partially {}, mostly lost {}), IDF1 {:.3}\n",
+            100.0 * v.recall,
+            v.mostly_tracked,
+            v.partially_tracked,
+            v.mostly_lost,
+            v.idf1
+        );
     }
     for (c, b) in &r.background_flow {
         s += &format!(
