@@ -6,14 +6,13 @@
 //! without an object is a *second track* when it lies on one object in at least half of its
 //! observed frames (that object picked up again under a new ID, as MOT's fragmentations),
 //! and *follows no object* otherwise (a false track). How much of each object the tracks
-//! cover is MOTChallenge's: the share of its frames in view on which some track lies on it
-//! (recall), mostly tracked (≥ 80 %), partially, or mostly lost (< 20 %); how well the IDs
-//! hold is IDF1 (Ristani et al. 2016) over the same global matching.
+//! cover, and IDF1 over the same matching, are `track::coverage`.
 
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use super::coverage::{Coverage, coverage};
 use super::hungarian::assign;
 use super::run::Tracks;
 use super::static_flow::BackgroundFlow;
@@ -46,34 +45,6 @@ pub struct ObjectReport {
     /// Mean distance between the tracked and the true centre (px).
     pub centre_error: f64,
     pub horizons: Vec<HorizonError>,
-}
-
-/// One true object's coverage.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ObjectCoverage {
-    pub index: usize,
-    /// Frames with a flow to the next (0..N − 1, or 0..N where the tracks have a record for
-    /// frame N − 1) in which the object is in view ...
-    pub in_view: usize,
-    /// ... and those on which an observed track lies on it (centre within its radius, CLEAR
-    /// MOT's one-to-one matching), whatever its ID.
-    pub tracked: usize,
-}
-
-/// How much of the objects the tracks cover and how well their IDs hold.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Coverage {
-    pub objects: Vec<ObjectCoverage>,
-    /// Objects tracked in at least 80 % of their frames in view, in 20–80 %, in under 20 %
-    /// (MOTChallenge's MT, PT, ML); objects never in view are left out.
-    pub mostly_tracked: usize,
-    pub partially_tracked: usize,
-    pub mostly_lost: usize,
-    /// Tracked object frames over object frames in view.
-    pub recall: f64,
-    /// 2 IDTP / (object frames in view + observed track frames), IDTP being the frames on
-    /// which a track lies on the object the global matching gave it.
-    pub idf1: f64,
 }
 
 /// `pins track eval`'s report.
@@ -281,44 +252,6 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
         background_flow: tracks.background_flow.clone(),
         coverage: Some(coverage(truth, span, &tracked, idtp, predictions)),
     })
-}
-
-/// The coverage of each object over frames 0..`span` from its tracked frames (`clear_mot`),
-/// and IDF1 from the matched pairs' hits (`idtp`) and the observed track frames
-/// (`predictions`).
-fn coverage(
-    truth: &Truth,
-    span: usize,
-    tracked: &[usize],
-    idtp: f64,
-    predictions: usize,
-) -> Coverage {
-    let objects: Vec<ObjectCoverage> = truth
-        .objects
-        .iter()
-        .enumerate()
-        .map(|(i, o)| ObjectCoverage {
-            index: i,
-            in_view: o.visible.iter().take(span).filter(|&&v| v).count(),
-            tracked: tracked[i],
-        })
-        .collect();
-    let seen: Vec<f64> = objects
-        .iter()
-        .filter(|o| o.in_view > 0)
-        .map(|o| o.tracked as f64 / o.in_view as f64)
-        .collect();
-    let in_view: usize = objects.iter().map(|o| o.in_view).sum();
-    let tracked: usize = objects.iter().map(|o| o.tracked).sum();
-    let ratio = |a: f64, b: usize| if b > 0 { a / b as f64 } else { f64::NAN };
-    Coverage {
-        mostly_tracked: seen.iter().filter(|&&r| r >= 0.8).count(),
-        partially_tracked: seen.iter().filter(|&&r| (0.2..0.8).contains(&r)).count(),
-        mostly_lost: seen.iter().filter(|&&r| r < 0.2).count(),
-        recall: ratio(tracked as f64, in_view),
-        idf1: ratio(2.0 * idtp, in_view + predictions),
-        objects,
-    }
 }
 
 /// ID switches as CLEAR MOT counts them: in every frame, true objects and observed tracks are

@@ -7,8 +7,9 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::coverage::Coverage;
 use super::detect::DetectConfig;
-use super::eval::{Coverage, HorizonError, evaluate};
+use super::eval::{HorizonError, evaluate};
 use super::mtp::MtpConfig;
 use super::multi::TrackerConfig;
 use super::photometric::{GreyFrame, GreyPair};

@@ -7,6 +7,7 @@ pub mod appearance;
 pub mod background;
 pub mod change;
 pub mod consistency;
+pub mod coverage;
 pub mod detect;
 pub mod eval;
 pub mod experiment;
