@@ -36,7 +36,8 @@ pub struct Coverage {
     pub idf1: f64,
 }
 
-/// The coverage of each object over frames 0..`span` from its tracked frames (`clear_mot`),
+/// The coverage of each object over frames 0..`span` from its tracked frames (`clear_mot`;
+/// an object without an entry has none),
 /// and IDF1 from the matched pairs' hits (`idtp`) and the observed track frames
 /// (`predictions`).
 pub fn coverage(
@@ -53,7 +54,7 @@ pub fn coverage(
         .map(|(i, o)| ObjectCoverage {
             index: i,
             in_view: o.visible.iter().take(span).filter(|&&v| v).count(),
-            tracked: tracked[i],
+            tracked: tracked.get(i).copied().unwrap_or(0),
         })
         .collect();
     let seen: Vec<f64> = objects

@@ -220,29 +220,21 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
         .filter(|i| !followed.contains(i) && truth.objects[*i].visible.iter().any(|&v| v))
         .collect();
     let (id_switches, tracked) = clear_mot(tracks, truth);
-    // Frame N − 1 has no flow to a next frame, so tracks have no record there, unless these
-    // tracks do.
-    let last = tracks
+    // Every observed track frame is a prediction. Frame N − 1 has no flow to a next frame,
+    // so tracks have no record there, unless these tracks do.
+    let (predictions, last) = tracks
         .objects
         .iter()
         .flat_map(|t| &t.frames)
         .filter(|f| f.observed)
-        .map(|f| f.frame + 1)
-        .max()
-        .unwrap_or(0);
+        .fold((0, 0), |(n, last), f| (n + 1, last.max(f.frame + 1)));
     let span = last.clamp(truth.frames.saturating_sub(1), truth.frames);
-    // IDTP: the hits of the matched pairs; every observed track frame is a prediction.
+    // IDTP: the hits of the matched pairs.
     let idtp: f64 = matched
         .iter()
         .zip(&cost)
         .filter_map(|(m, row)| m.map(|i| -row[i]))
         .sum();
-    let predictions = tracks
-        .objects
-        .iter()
-        .flat_map(|t| &t.frames)
-        .filter(|f| f.observed)
-        .count();
     Ok(TrackReport {
         objects,
         overall: overall.iter().map(|(&h, a)| a.error(h)).collect(),
