@@ -433,3 +433,76 @@ fn the_shipped_weights_recover_most_of_the_motion_of_unseen_metalens_pairs() {
         "shipped weights: EPE {epe} against {zero} for zero flow"
     );
 }
+
+/// `pins infer --frames --scale`: the network runs at another size, the flow comes back at the
+/// frames' size and in their pixels; a scale outside (0, 4] is refused before any output.
+#[test]
+fn infer_at_another_scale_gives_flow_at_the_frames_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let data = tiny_dataset(t);
+    let frames = t.join("frames");
+    fs::create_dir_all(&frames).unwrap();
+    fs::copy(data.join("00000_img1.png"), frames.join("a.png")).unwrap();
+    fs::copy(data.join("00000_img2.png"), frames.join("b.png")).unwrap();
+    let truth = pins::io::read_flow(&data.join("00000_flow.flo")).unwrap();
+    let (f, w, h) = (frames.to_str().unwrap(), truth.width(), truth.height());
+    let epe = |flow: &pins::Flow| {
+        let (u, v, tu, tv) = (flow.u(), flow.v(), truth.u(), truth.v());
+        let n = u.len() as f64;
+        (0..u.len())
+            .map(|i| ((u[i] - tu[i]) as f64).hypot((v[i] - tv[i]) as f64))
+            .sum::<f64>()
+            / n
+    };
+    let zero = epe(&pins::Flow::zeros(h, w));
+    let mut flows = Vec::new();
+    for scale in ["1", "1.5", "0.75"] {
+        let out = t.join(format!("out{scale}"));
+        ok(&pins(&[
+            "infer",
+            "--weights",
+            "mms-small",
+            "--frames",
+            f,
+            "--out",
+            out.to_str().unwrap(),
+            "--iters",
+            "4",
+            "--refine",
+            "none",
+            "--start",
+            "zero",
+            "--scale",
+            scale,
+        ]));
+        let flow = pins::io::read_flow(&out.join("a.flo")).unwrap();
+        assert_eq!((flow.width(), flow.height()), (w, h), "scale {scale}");
+        assert!(flow.u().iter().chain(flow.v()).all(|x| x.is_finite()));
+        let e = epe(&flow);
+        assert!(
+            e < 0.7 * zero,
+            "scale {scale}: EPE {e} against zero flow's {zero}"
+        );
+        flows.push(flow);
+    }
+    assert_ne!(
+        flows[0].u(),
+        flows[1].u(),
+        "--scale 1.5 ran at another size"
+    );
+    for bad in ["0", "5", "NaN", "-1"] {
+        let out = t.join("bad");
+        let err = failed(&pins(&[
+            "infer",
+            "--frames",
+            f,
+            "--out",
+            out.to_str().unwrap(),
+            "--scale",
+            bad,
+        ]));
+        assert!(err.contains("--scale"), "{bad}: {err}");
+        assert!(!out.exists(), "{bad}: no output");
+    }
+}

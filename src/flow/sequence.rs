@@ -62,7 +62,7 @@ pub fn pair_flows<'a, F: Frames + ?Sized>(
     pair_flows_scaled(predictor, frames, iters, 1.0)
 }
 
-/// As `pair_flows`, with the network run at `scale` ∈ (0, 1] of the frames' size and the flow
+/// As `pair_flows`, with the network run at `scale` ∈ (0, 4] of the frames' size and the flow
 /// brought back to it (`super::scale`); the time includes the resampling.
 pub fn pair_flows_scaled<'a, F: Frames + ?Sized>(
     predictor: &'a Predictor,
