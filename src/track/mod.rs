@@ -4,6 +4,7 @@
 
 pub mod align;
 pub mod appearance;
+pub mod associate;
 pub mod background;
 pub mod change;
 pub mod consistency;

@@ -16,7 +16,7 @@ use std::collections::VecDeque;
 use serde::{Deserialize, Serialize};
 
 use super::appearance::Appearance;
-use super::hungarian::assign;
+use super::associate::{Association, Tracked, associate, covers};
 use super::mtp::{Estimate, Mtp, MtpConfig};
 use super::reid::{Candidate, Lost, reid_distance};
 use super::roi::Region;
@@ -285,96 +285,18 @@ impl Tracker {
         detections: &[Region],
         horizon: usize,
     ) -> Result<Vec<TrackEstimate>> {
-        let (k, floor) = (self.config.appearance_k, self.config.appearance_floor);
-        let lambda = self.config.appearance_px;
-        let looks = |t: &Track, d: &Region| {
-            t.appearance
-                .as_ref()
-                .is_none_or(|a| a.admits(d.colour, k, floor))
-        };
-        let exclusion = self.config.birth_exclusion_px;
-        let cost: Vec<Vec<f64>> = self
+        let view: Vec<Tracked> = self
             .tracks
             .iter()
-            .map(|t| {
-                let c = &self.config;
-                let gate = c.gate_px * (1.0 + 0.5 * t.misses as f64).min(c.max_gate_factor);
-                let v = t.mtp.velocity();
-                let vgate = c.velocity_gate_px + c.velocity_gate_rel * v.0.hypot(v.1);
-                detections
-                    .iter()
-                    .map(|d| {
-                        let dist = ((d.centroid.0 - t.predicted.0).powi(2)
-                            + (d.centroid.1 - t.predicted.1).powi(2))
-                        .sqrt();
-                        let dv = (d.mean_flow.0 - v.0).hypot(d.mean_flow.1 - v.1);
-                        // A NaN velocity difference (unknown) does not close the gate.
-                        if dist <= gate && (dv.is_nan() || dv <= vgate) && looks(t, d) {
-                            dist + lambda
-                                * t.appearance
-                                    .as_ref()
-                                    .map_or(0.0, |a| a.cost(d.colour, floor))
-                        } else {
-                            f64::INFINITY
-                        }
-                    })
-                    .collect()
+            .map(|t| Tracked {
+                predicted: t.predicted,
+                velocity: t.mtp.velocity(),
+                misses: t.misses,
+                confirmed: t.confirmed,
+                appearance: t.appearance.as_ref(),
             })
             .collect();
-        let mut matches = assign(&cost);
-        // A second chance (as ByteTrack's second association): a confirmed track left without
-        // a detection takes an unmatched one within the birth-exclusion radius of its
-        // prediction, by distance alone. One bad match can throw a track's velocity off, and
-        // the velocity gate would then refuse its object, which would only be called a
-        // fragment of it and never move it again.
-        let taken: Vec<bool> = (0..detections.len())
-            .map(|j| matches.contains(&Some(j)))
-            .collect();
-        let orphans: Vec<usize> = (0..self.tracks.len())
-            .filter(|&i| matches[i].is_none() && self.tracks[i].confirmed)
-            .collect();
-        if !orphans.is_empty() && taken.iter().any(|&t| !t) {
-            let second: Vec<Vec<f64>> = orphans
-                .iter()
-                .map(|&i| {
-                    let track = &self.tracks[i];
-                    let p = track.predicted;
-                    detections
-                        .iter()
-                        .zip(&taken)
-                        .map(|(d, &t)| {
-                            let dist = (d.centroid.0 - p.0).hypot(d.centroid.1 - p.1);
-                            if !t && dist <= exclusion && looks(track, d) {
-                                dist
-                            } else {
-                                f64::INFINITY
-                            }
-                        })
-                        .collect()
-                })
-                .collect();
-            for (&i, m) in orphans.iter().zip(assign(&second)) {
-                matches[i] = m;
-            }
-        }
-        // A merge: a confirmed track left without a detection whose prediction lies inside a
-        // detection given to another track (within that region's equivalent radius). Both
-        // objects are then hidden in one region, whose centre and flow belong to neither, so
-        // every track on it coasts on its own motion until the region splits again. Only a
-        // track seen within the confirmation window makes one: the prediction of a track that
-        // has coasted longer is an extrapolation, not evidence of a hidden object (it would
-        // stop the other track and then take its object).
-        let mut shared = vec![false; detections.len()];
-        for (t, m) in self.tracks.iter().zip(&matches) {
-            if m.is_some() || !t.confirmed || t.misses > self.config.confirm {
-                continue;
-            }
-            for (j, d) in detections.iter().enumerate() {
-                if covers(d, t.predicted) && matches.contains(&Some(j)) {
-                    shared[j] = true;
-                }
-            }
-        }
+        let Association { matches, shared } = associate(&view, detections, &self.config);
         let mut used = vec![false; detections.len()];
         let mut out = Vec::new();
         let horizon = horizon.max(1);
@@ -669,12 +591,6 @@ impl Tracker {
             Err(j) => (self.lost.swap_remove(j).id, false),
         })
     }
-}
-
-/// True when `point` lies within the equivalent radius √(area/π) of region `d`.
-fn covers(d: &Region, point: (f64, f64)) -> bool {
-    (d.centroid.0 - point.0).hypot(d.centroid.1 - point.1)
-        <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
 }
 
 #[cfg(test)]

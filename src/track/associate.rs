@@ -1,0 +1,210 @@
+//! Association of one frame's detections with the tracks (Note S13's many objects, Movie S2):
+//! gated optimal assignment on the distance to each track's prediction (with its velocity and
+//! appearance gates and the appearance cost), a second chance by distance alone for confirmed
+//! tracks left without a detection (ByteTrack's second association), and the merges, regions
+//! that hide a second confirmed track's object.
+
+use super::appearance::Appearance;
+use super::hungarian::assign;
+use super::multi::TrackerConfig;
+use super::roi::Region;
+
+/// What association needs to know of one track.
+pub struct Tracked<'a> {
+    /// Its one-frame-ahead prediction (px).
+    pub predicted: (f64, f64),
+    /// Its position filter's velocity (px/frame).
+    pub velocity: (f64, f64),
+    /// Consecutive frames without a detection.
+    pub misses: usize,
+    pub confirmed: bool,
+    /// Its object's colour, once it has one.
+    pub appearance: Option<&'a Appearance>,
+}
+
+/// One frame's association.
+pub struct Association {
+    /// Per track, the detection it takes.
+    pub matches: Vec<Option<usize>>,
+    /// Per detection, whether it hides the object of a confirmed track besides the one it was
+    /// matched to (a merge: every track on it coasts).
+    pub shared: Vec<bool>,
+}
+
+/// Matches `detections` to `tracks` (see the module's text).
+pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConfig) -> Association {
+    let (k, floor) = (config.appearance_k, config.appearance_floor);
+    let lambda = config.appearance_px;
+    let looks = |t: &Tracked, d: &Region| t.appearance.is_none_or(|a| a.admits(d.colour, k, floor));
+    let exclusion = config.birth_exclusion_px;
+    let cost: Vec<Vec<f64>> = tracks
+        .iter()
+        .map(|t| {
+            let c = config;
+            let gate = c.gate_px * (1.0 + 0.5 * t.misses as f64).min(c.max_gate_factor);
+            let v = t.velocity;
+            let vgate = c.velocity_gate_px + c.velocity_gate_rel * v.0.hypot(v.1);
+            detections
+                .iter()
+                .map(|d| {
+                    let dist = ((d.centroid.0 - t.predicted.0).powi(2)
+                        + (d.centroid.1 - t.predicted.1).powi(2))
+                    .sqrt();
+                    let dv = (d.mean_flow.0 - v.0).hypot(d.mean_flow.1 - v.1);
+                    // A NaN velocity difference (unknown) does not close the gate.
+                    if dist <= gate && (dv.is_nan() || dv <= vgate) && looks(t, d) {
+                        dist + lambda * t.appearance.map_or(0.0, |a| a.cost(d.colour, floor))
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let mut matches = assign(&cost);
+    // A second chance (as ByteTrack's second association): a confirmed track left without
+    // a detection takes an unmatched one within the birth-exclusion radius of its
+    // prediction, by distance alone. One bad match can throw a track's velocity off, and
+    // the velocity gate would then refuse its object, which would only be called a
+    // fragment of it and never move it again.
+    let taken: Vec<bool> = (0..detections.len())
+        .map(|j| matches.contains(&Some(j)))
+        .collect();
+    let orphans: Vec<usize> = (0..tracks.len())
+        .filter(|&i| matches[i].is_none() && tracks[i].confirmed)
+        .collect();
+    if !orphans.is_empty() && taken.iter().any(|&t| !t) {
+        let second: Vec<Vec<f64>> = orphans
+            .iter()
+            .map(|&i| {
+                let track = &tracks[i];
+                let p = track.predicted;
+                detections
+                    .iter()
+                    .zip(&taken)
+                    .map(|(d, &t)| {
+                        let dist = (d.centroid.0 - p.0).hypot(d.centroid.1 - p.1);
+                        if !t && dist <= exclusion && looks(track, d) {
+                            dist
+                        } else {
+                            f64::INFINITY
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        for (&i, m) in orphans.iter().zip(assign(&second)) {
+            matches[i] = m;
+        }
+    }
+    // A merge: a confirmed track left without a detection whose prediction lies inside a
+    // detection given to another track (within that region's equivalent radius). Both
+    // objects are then hidden in one region, whose centre and flow belong to neither, so
+    // every track on it coasts on its own motion until the region splits again. Only a
+    // track seen within the confirmation window makes one: the prediction of a track that
+    // has coasted longer is an extrapolation, not evidence of a hidden object (it would
+    // stop the other track and then take its object).
+    let mut shared = vec![false; detections.len()];
+    for (t, m) in tracks.iter().zip(&matches) {
+        if m.is_some() || !t.confirmed || t.misses > config.confirm {
+            continue;
+        }
+        for (j, d) in detections.iter().enumerate() {
+            if covers(d, t.predicted) && matches.contains(&Some(j)) {
+                shared[j] = true;
+            }
+        }
+    }
+    Association { matches, shared }
+}
+
+/// True when `point` lies within the equivalent radius √(area/π) of region `d`.
+pub fn covers(d: &Region, point: (f64, f64)) -> bool {
+    (d.centroid.0 - point.0).hypot(d.centroid.1 - point.1)
+        <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn det(x: f64, y: f64, flow: (f64, f64), pixels: usize) -> Region {
+        Region {
+            colour: None,
+            pixels,
+            centroid: (x, y),
+            speed: flow.0.hypot(flow.1),
+            direction: Some(flow.1.atan2(flow.0)),
+            bbox: [0, 0, 1, 1],
+            mean_flow: flow,
+            placed: None,
+            aligned: None,
+        }
+    }
+
+    fn track(predicted: (f64, f64), velocity: (f64, f64), confirmed: bool) -> Tracked<'static> {
+        Tracked {
+            predicted,
+            velocity,
+            misses: 0,
+            confirmed,
+            appearance: None,
+        }
+    }
+
+    #[test]
+    fn the_assignment_is_optimal_and_gated_by_distance_and_velocity() {
+        let config = TrackerConfig::default();
+        let tracks = [
+            track((10.0, 10.0), (2.0, 0.0), true),
+            track((20.0, 10.0), (2.0, 0.0), true),
+        ];
+        // The nearest pair (track 1, detection 0: 4 px) first would leave track 0 the far
+        // detection (17 px, 21 in all); the optimum pairs them in order (6 + 7 px).
+        let dets = [
+            det(16.0, 10.0, (2.0, 0.0), 100),
+            det(27.0, 10.0, (2.0, 0.0), 100),
+        ];
+        let a = associate(&tracks, &dets, &config);
+        assert_eq!(a.matches, vec![Some(0), Some(1)]);
+        assert_eq!(a.shared, vec![false, false]);
+        // Beyond the gate: no match, however alone.
+        let far = [det(10.0 + 2.0 * config.gate_px, 10.0, (2.0, 0.0), 100)];
+        assert_eq!(associate(&tracks[..1], &far, &config).matches, vec![None]);
+        // A tentative track does not take a detection whose flow goes the other way; a
+        // confirmed one takes it in the second association, within the birth exclusion.
+        let against = [det(12.0, 10.0, (-6.0, 0.0), 100)];
+        let tentative = [track((10.0, 10.0), (6.0, 0.0), false)];
+        assert_eq!(associate(&tentative, &against, &config).matches, vec![None]);
+        let confirmed = [track((10.0, 10.0), (6.0, 0.0), true)];
+        assert_eq!(
+            associate(&confirmed, &against, &config).matches,
+            vec![Some(0)]
+        );
+    }
+
+    #[test]
+    fn a_region_over_two_confirmed_predictions_is_a_merge() {
+        let config = TrackerConfig::default();
+        // One region of radius √(1200/π) ≈ 19.5 px covers both predictions.
+        let dets = [det(53.0, 50.0, (1.0, 0.0), 1200)];
+        let tracks = [
+            track((50.0, 50.0), (1.0, 0.0), true),
+            track((62.0, 50.0), (1.0, 0.0), true),
+        ];
+        let a = associate(&tracks, &dets, &config);
+        assert_eq!(a.matches, vec![Some(0), None]);
+        assert_eq!(a.shared, vec![true]);
+        // A track that has coasted past the confirmation window makes no merge, nor does a
+        // prediction outside the region.
+        let mut coasted = tracks;
+        coasted[1].misses = config.confirm + 1;
+        assert_eq!(associate(&coasted, &dets, &config).shared, vec![false]);
+        let apart = [
+            track((50.0, 50.0), (1.0, 0.0), true),
+            track((80.0, 50.0), (1.0, 0.0), true),
+        ];
+        assert_eq!(associate(&apart, &dets, &config).shared, vec![false]);
+        assert!(covers(&dets[0], (72.0, 50.0)) && !covers(&dets[0], (73.0, 50.0)));
+    }
+}
