@@ -487,6 +487,7 @@ fn operating_points_give_the_error_against_run_time() {
         ),
         (r#""scale": 1.5"#, "only MMS flow runs at a scale"),
         (r#""flow": "mms", "scale": 0"#, "must be in (0, 4]"),
+        (r#""max_gate_factor": 0.5"#, "max_gate_factor"),
         (
             r#""flow": "mms", "operating_points": [{"scale": 0.5, "iters": 0}]"#,
             "iters must be",

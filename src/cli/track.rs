@@ -156,6 +156,10 @@ struct RunArgs {
     /// right within 2 px + 30 %.
     #[arg(long, default_value_t = 1.0)]
     consistency_max_ratio: f64,
+    /// The matching gate (40 px) widens by half per frame a track has coasted, up to this many
+    /// times; 1 keeps it fixed (for a flow that seldom loses its movers, e.g. `--scale 1.5`).
+    #[arg(long, default_value_t = 2.0)]
+    max_gate_factor: f64,
     /// Report a track that has coasted (no detection) for up to this many frames; longer
     /// coasts stay internal, so the ID survives a gap of up to 15 frames. 0 (the default, as
     /// SORT does) reports only the tracks a detection confirmed in that frame.
@@ -301,6 +305,7 @@ fn run(a: RunArgs) -> Result<()> {
         },
         confirm: a.confirm,
         consistency_max_ratio: a.consistency_max_ratio,
+        max_gate_factor: a.max_gate_factor,
         partial_area_ratio: a.partial_area_ratio,
         max_coast_reported: a.max_coast_reported,
         appearance_k: a.appearance_k,

@@ -95,6 +95,10 @@ pub struct ExperimentConfig {
     /// Confirmation window and motion consistency (see `TrackerConfig`); the defaults when absent.
     #[serde(default)]
     pub confirm: Option<usize>,
+    /// How far the matching gate widens while a track coasts (`TrackerConfig::max_gate_factor`);
+    /// the default when absent.
+    #[serde(default)]
+    pub max_gate_factor: Option<f64>,
     /// MMS flow only: the points of the whole system's error-against-run-time curve (flow
     /// resolution and iterations). Empty: one point, full resolution at `iters`.
     #[serde(default)]
@@ -196,6 +200,14 @@ impl ExperimentConfig {
         self.detect.validate()?;
         if self.confirm == Some(0) {
             return Err(Error::invalid("confirm", "must be >= 1"));
+        }
+        if let Some(f) = self.max_gate_factor
+            && !(f >= 1.0 && f.is_finite())
+        {
+            return Err(Error::invalid(
+                "max_gate_factor",
+                format!("must be finite and >= 1, got {f}"),
+            ));
         }
         if !self.operating_points.is_empty() && self.flow != FlowSource::Mms {
             return Err(Error::invalid(
@@ -403,6 +415,9 @@ pub fn run(
                     tracker: TrackerConfig {
                         mtp: p.mtp.clone(),
                         confirm: cfg.confirm.unwrap_or(TrackerConfig::default().confirm),
+                        max_gate_factor: cfg
+                            .max_gate_factor
+                            .unwrap_or(TrackerConfig::default().max_gate_factor),
                         ..TrackerConfig::default()
                     },
                     horizons: cfg.horizons.clone(),
