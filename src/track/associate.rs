@@ -6,8 +6,8 @@
 
 use super::appearance::Appearance;
 use super::hungarian::assign;
-use super::multi::TrackerConfig;
 use super::roi::Region;
+use super::tracker_config::TrackerConfig;
 
 /// What association needs to know of one track.
 pub struct Tracked<'a> {
@@ -40,10 +40,9 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
     let cost: Vec<Vec<f64>> = tracks
         .iter()
         .map(|t| {
-            let c = config;
-            let gate = c.gate_px * (1.0 + 0.5 * t.misses as f64).min(c.max_gate_factor);
+            let gate = config.gate_px * (1.0 + 0.5 * t.misses as f64).min(config.max_gate_factor);
             let v = t.velocity;
-            let vgate = c.velocity_gate_px + c.velocity_gate_rel * v.0.hypot(v.1);
+            let vgate = config.velocity_gate_px + config.velocity_gate_rel * v.0.hypot(v.1);
             detections
                 .iter()
                 .map(|d| {

@@ -27,4 +27,5 @@ pub mod roi;
 pub mod run;
 pub mod static_flow;
 pub mod still_background;
+pub mod tracker_config;
 pub mod trim;

@@ -13,108 +13,15 @@
 
 use std::collections::VecDeque;
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use super::appearance::Appearance;
 use super::associate::{Association, Tracked, associate, covers};
-use super::mtp::{Estimate, Mtp, MtpConfig};
+use super::mtp::{Estimate, Mtp};
 use super::reid::{Candidate, Lost, reid_distance};
 use super::roi::Region;
+pub use super::tracker_config::TrackerConfig;
 use crate::error::{Error, Result};
-
-/// Tracker settings.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct TrackerConfig {
-    pub mtp: MtpConfig,
-    /// Largest distance (px) between a prediction and a detection that may be matched; it
-    /// widens by half for every frame a track has coasted, so a track re-acquires its object
-    /// after an occlusion or a merge.
-    pub gate_px: f64,
-    /// Consecutive hits before a new track is reported (the confirmation window).
-    pub confirm: usize,
-    /// Misses before a track ends.
-    pub patience: usize,
-    /// Motion consistency over the confirmation window: the centre's displacement from the
-    /// first to the last hit must match the sum of the regions' flows within
-    /// `consistency_px + consistency_rel × |sum of flows|`. Infinite turns the test off.
-    pub consistency_px: f64,
-    pub consistency_rel: f64,
-    /// An estimated flow may underestimate a small mover (it smooths the object into its
-    /// background): above 1, a centre that moved further than the flows say, in their
-    /// direction (within 30°), is consistent up to this many times their sum. A spurious
-    /// blob, which stays where it is while its flow says it moves, still fails. 1 (the
-    /// default) asks the flow to be right within the tolerance above.
-    pub consistency_max_ratio: f64,
-    /// The gate widens by half per coasted frame up to this many times `gate_px`.
-    pub max_gate_factor: f64,
-    /// Motion gate: a detection whose mean flow differs from the track's velocity by more
-    /// than `velocity_gate_px + velocity_gate_rel × |velocity|` (px/frame) is not matched to
-    /// it (a spurious blob beside a coasting track moves its own way). Infinite turns it off.
-    pub velocity_gate_px: f64,
-    pub velocity_gate_rel: f64,
-    /// No track is born from a detection within this distance (px) of a confirmed track's
-    /// centre: a second region on the same object (a fragment of a poorly estimated flow) is
-    /// not a second object.
-    pub birth_exclusion_px: f64,
-    /// A matched detection smaller than this fraction of the track's median area over its
-    /// last `area_window` observations is a fragment of the object (part of it moves in an
-    /// estimated flow): it keeps the track alive, but its centre, which can lie anywhere on
-    /// the object, does not move the track, which coasts through that frame. A region placed
-    /// on the frame (`Region::placed`) is never a fragment. 0 turns it off.
-    pub partial_area_ratio: f64,
-    pub area_window: usize,
-    /// A track that has coasted (no detection) for more than this many consecutive frames is
-    /// kept, to take its object back within `patience`, but not reported: its estimate is an
-    /// extrapolation that no measurement has checked for that long (SORT reports matched
-    /// tracks only, i.e. 0 here).
-    pub max_coast_reported: usize,
-    /// The appearance cue (`track::appearance`, with frames): a detection whose colour lies
-    /// more than `appearance_k` standard deviations from a track's running colour (each
-    /// channel's at least `appearance_floor` 8-bit levels) is not matched to it, and each
-    /// standard deviation adds `appearance_px` to the matching cost (px), so where two objects
-    /// meet, each track prefers its own. Infinite `appearance_k` and 0 `appearance_px` turn it
-    /// off.
-    pub appearance_k: f64,
-    pub appearance_floor: f64,
-    pub appearance_px: f64,
-    /// Re-identification: a confirmed track that ended (its patience spent, or it coasted out
-    /// of the view) is remembered for this many frames after it was last seen; 0 turns
-    /// re-identification off.
-    pub reid_frames: usize,
-    /// A track being confirmed takes the ID of an ended (or a coasting) track when it was born
-    /// after that track was last seen, within `gate_px` + 2 × the track's top speed × the
-    /// frames between, and its mean colour lies within this many of the old track's standard
-    /// deviations (`appearance_floor` at least); of several, the nearest in colour. Both need
-    /// colours (frames).
-    pub reid_k: f64,
-}
-
-impl Default for TrackerConfig {
-    fn default() -> Self {
-        Self {
-            mtp: MtpConfig::default(),
-            gate_px: 40.0,
-            confirm: 5,
-            patience: 15,
-            consistency_px: 2.0,
-            consistency_rel: 0.3,
-            consistency_max_ratio: 1.0,
-            max_gate_factor: 2.0,
-            velocity_gate_px: 2.0,
-            velocity_gate_rel: 0.5,
-            birth_exclusion_px: 30.0,
-            partial_area_ratio: 0.35,
-            area_window: 15,
-            max_coast_reported: 0,
-            appearance_k: 6.0,
-            appearance_floor: 8.0,
-            appearance_px: 5.0,
-            reid_frames: 150,
-            reid_k: 3.0,
-        }
-    }
-}
 
 /// One track's estimate in one frame.
 #[derive(Clone, Debug, PartialEq)]
