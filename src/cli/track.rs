@@ -178,6 +178,11 @@ struct RunArgs {
     /// it off).
     #[arg(long, default_value_t = 5.0)]
     appearance_px: f64,
+    /// Matching cascade (DeepSORT's): confirmed tracks take their detections first, tentative
+    /// ones the detections left, so a track born on a fragment cannot push a confirmed track
+    /// onto a farther detection.
+    #[arg(long)]
+    match_cascade: bool,
     /// Re-identification: an ended track's ID waits this many frames after it was last seen
     /// for a new track of its colour born where its object could be (0 turns it off).
     #[arg(long, default_value_t = 150)]
@@ -310,6 +315,7 @@ fn run(a: RunArgs) -> Result<()> {
         max_coast_reported: a.max_coast_reported,
         appearance_k: a.appearance_k,
         appearance_px: a.appearance_px,
+        match_cascade: a.match_cascade,
         reid_frames: a.reid_frames,
         reid_k: a.reid_k,
         ..TrackerConfig::default()

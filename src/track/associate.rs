@@ -60,7 +60,11 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
                 .collect()
         })
         .collect();
-    let mut matches = assign(&cost);
+    let mut matches = if config.match_cascade {
+        cascade(tracks, &cost)
+    } else {
+        assign(&cost)
+    };
     // A second chance (as ByteTrack's second association): a confirmed track left without
     // a detection takes an unmatched one within the birth-exclusion radius of its
     // prediction, by distance alone. One bad match can throw a track's velocity off, and
@@ -115,6 +119,35 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
         }
     }
     Association { matches, shared }
+}
+
+/// The matching cascade: the confirmed tracks' optimal assignment first, then the tentative
+/// tracks' on the detections the confirmed ones left.
+fn cascade(tracks: &[Tracked], cost: &[Vec<f64>]) -> Vec<Option<usize>> {
+    let mut matches = vec![None; tracks.len()];
+    let mut taken = vec![false; cost.first().map_or(0, Vec::len)];
+    for confirmed in [true, false] {
+        let rows: Vec<usize> = (0..tracks.len())
+            .filter(|&i| tracks[i].confirmed == confirmed)
+            .collect();
+        let sub: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|&i| {
+                cost[i]
+                    .iter()
+                    .zip(&taken)
+                    .map(|(&c, &t)| if t { f64::INFINITY } else { c })
+                    .collect()
+            })
+            .collect();
+        for (&i, m) in rows.iter().zip(assign(&sub)) {
+            if let Some(j) = m {
+                taken[j] = true;
+            }
+            matches[i] = m;
+        }
+    }
+    matches
 }
 
 /// True when `point` lies within the equivalent radius √(area/π) of region `d`.
@@ -179,6 +212,41 @@ mod tests {
         assert_eq!(
             associate(&confirmed, &against, &config).matches,
             vec![Some(0)]
+        );
+    }
+
+    #[test]
+    fn the_cascade_keeps_a_tentative_track_from_pushing_a_confirmed_one_away() {
+        let mut config = TrackerConfig::default();
+        // The confirmed track's object is 10 px from it; a tentative track (a fragment's)
+        // is 10 px from it too, and the only other detection is 25 px from the confirmed
+        // track and out of the tentative one's gate. One assignment over both tracks matches
+        // both, sending the confirmed track 25 px off.
+        let tracks = [
+            track((10.0, 10.0), (1.0, 0.0), true),
+            track((30.0, 10.0), (1.0, 0.0), false),
+        ];
+        let dets = [
+            det(20.0, 10.0, (1.0, 0.0), 100),
+            det(-15.0, 10.0, (1.0, 0.0), 100),
+        ];
+        assert_eq!(
+            associate(&tracks, &dets, &config).matches,
+            vec![Some(1), Some(0)]
+        );
+        config.match_cascade = true;
+        assert_eq!(
+            associate(&tracks, &dets, &config).matches,
+            vec![Some(0), None]
+        );
+        // The tentative tracks still take what the confirmed ones leave, optimally.
+        let dets = [
+            det(12.0, 10.0, (1.0, 0.0), 100),
+            det(33.0, 10.0, (1.0, 0.0), 100),
+        ];
+        assert_eq!(
+            associate(&tracks, &dets, &config).matches,
+            vec![Some(0), Some(1)]
         );
     }
 

@@ -99,6 +99,9 @@ pub struct ExperimentConfig {
     /// the default when absent.
     #[serde(default)]
     pub max_gate_factor: Option<f64>,
+    /// The matching cascade (`TrackerConfig::match_cascade`); off when absent.
+    #[serde(default)]
+    pub match_cascade: bool,
     /// MMS flow only: the points of the whole system's error-against-run-time curve (flow
     /// resolution and iterations). Empty: one point, full resolution at `iters`.
     #[serde(default)]
@@ -418,6 +421,7 @@ pub fn run(
                         max_gate_factor: cfg
                             .max_gate_factor
                             .unwrap_or(TrackerConfig::default().max_gate_factor),
+                        match_cascade: cfg.match_cascade,
                         ..TrackerConfig::default()
                     },
                     horizons: cfg.horizons.clone(),

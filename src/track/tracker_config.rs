@@ -62,6 +62,11 @@ pub struct TrackerConfig {
     pub appearance_k: f64,
     pub appearance_floor: f64,
     pub appearance_px: f64,
+    /// Matching cascade (DeepSORT's): the confirmed tracks are matched first, the tentative
+    /// ones then to the detections left. Without it, one assignment over all tracks
+    /// maximises the number of matches, so a tentative track born on a fragment can push a
+    /// confirmed track onto a farther detection.
+    pub match_cascade: bool,
     /// Re-identification: a confirmed track that ended (its patience spent, or it coasted out
     /// of the view) is remembered for this many frames after it was last seen; 0 turns
     /// re-identification off.
@@ -94,6 +99,7 @@ impl Default for TrackerConfig {
             appearance_k: 6.0,
             appearance_floor: 8.0,
             appearance_px: 5.0,
+            match_cascade: false,
             reid_frames: 150,
             reid_k: 3.0,
         }
