@@ -178,6 +178,11 @@ struct RunArgs {
     /// it off).
     #[arg(long, default_value_t = 5.0)]
     appearance_px: f64,
+    /// A region the still background could not place (the foreground's centre too far from
+    /// its flow centroid) is placed there after all when that centre lies nearer the track's
+    /// prediction, within this share of the region's radius of it (0 turns this off).
+    #[arg(long, default_value_t = 0.5)]
+    foreground_gate: f64,
     /// Matching cascade (DeepSORT's): confirmed tracks take their detections first, tentative
     /// ones the detections left, so a track born on a fragment cannot push a confirmed track
     /// onto a farther detection.
@@ -316,6 +321,7 @@ fn run(a: RunArgs) -> Result<()> {
         appearance_k: a.appearance_k,
         appearance_px: a.appearance_px,
         match_cascade: a.match_cascade,
+        foreground_gate: a.foreground_gate,
         reid_frames: a.reid_frames,
         reid_k: a.reid_k,
         ..TrackerConfig::default()

@@ -170,6 +170,7 @@ mod tests {
             bbox: [0, 0, 1, 1],
             mean_flow: flow,
             placed: None,
+            foreground: None,
             aligned: None,
         }
     }

@@ -256,8 +256,10 @@ impl FrameDetection {
             .filter(|c| c.accepted)
             .zip(placed)
         {
-            if let Placement::Moved { to } = p {
-                c.region.placed = Some(to);
+            match p {
+                Placement::Moved { to } => c.region.placed = Some(to),
+                Placement::Far { to, .. } => c.region.foreground = Some(to),
+                Placement::Kept(_) => {}
             }
             c.placement = Some(p);
         }

@@ -278,6 +278,7 @@ mod tests {
             bbox: [0, 0, 1, 1],
             mean_flow: (0.0, 0.0),
             placed: None,
+            foreground: None,
             aligned: None,
         }
     }

@@ -32,6 +32,20 @@ pub struct TrackEstimate {
     pub observed: bool,
 }
 
+/// Region `d` placed at its foreground centre (`Region::foreground`) when that centre lies
+/// nearer `predicted` than the flow centroid does and within `gate` × the region's equivalent
+/// radius of it; `None` otherwise (or when `d` was placed, or has no such centre).
+fn adopt_foreground(d: &Region, predicted: (f64, f64), gate: f64) -> Option<Region> {
+    let f = d.foreground.filter(|_| d.placed.is_none())?;
+    let to_f = (f.0 - predicted.0).hypot(f.1 - predicted.1);
+    let to_c = (d.centroid.0 - predicted.0).hypot(d.centroid.1 - predicted.1);
+    let radius = (d.pixels as f64 / std::f64::consts::PI).sqrt();
+    (to_f < to_c && to_f <= gate * radius).then(|| Region {
+        placed: Some(f),
+        ..d.clone()
+    })
+}
+
 /// The median of `values`; `None` when there are none.
 fn median(values: &VecDeque<usize>) -> Option<f64> {
     let mut v: Vec<usize> = values.iter().copied().collect();
@@ -130,6 +144,15 @@ impl Tracker {
             return Err(Error::invalid(
                 "tracker.consistency_max_ratio",
                 format!("must be >= 1, got {}", config.consistency_max_ratio),
+            ));
+        }
+        if !(config.foreground_gate.is_finite() && config.foreground_gate >= 0.0) {
+            return Err(Error::invalid(
+                "tracker.foreground_gate",
+                format!(
+                    "must be finite and >= 0 (0: off), got {}",
+                    config.foreground_gate
+                ),
             ));
         }
         if config.max_gate_factor.is_nan() || config.max_gate_factor < 1.0 {
@@ -231,6 +254,12 @@ impl Tracker {
                 used[j] = true;
                 (!shared[j]).then(|| &detections[j])
             });
+            let adopted = det.and_then(|d| {
+                t.confirmed
+                    .then(|| adopt_foreground(d, t.predicted, self.config.foreground_gate))
+                    .flatten()
+            });
+            let det = adopted.as_ref().or(det);
             // Inside a merged region the object is seen, only not separately: no miss.
             let in_merge = m.is_some_and(|j| shared[j])
                 || (m.is_none()
@@ -514,6 +543,7 @@ mod tests {
             bbox: [0, 0, 1, 1],
             mean_flow: (vx, vy),
             placed: None,
+            foreground: None,
             aligned: None,
         }
     }
@@ -888,5 +918,68 @@ mod tests {
             following > 3.0,
             "without the rule the fragment pulls it {following} px"
         );
+    }
+
+    #[test]
+    fn a_foreground_centre_the_prediction_confirms_places_the_region() {
+        // An object of 800 px (radius 16) moving 4 px/frame along y = 50. From frame 10 the
+        // flow's region is smeared 14 px ahead of it (more than half its radius, so the still
+        // background did not place it) while the frames' foreground centre is the object's.
+        // In frames 20–24 a second foreground, another object's, lies 14 px to the side.
+        let run = |gate: f64| {
+            let mut tr = Tracker::new(TrackerConfig {
+                foreground_gate: gate,
+                ..TrackerConfig::default()
+            })
+            .unwrap();
+            let (mut worst, mut sideways) = (0.0f64, 0.0f64);
+            for n in 0..30 {
+                let x = 10.0 + 4.0 * n as f64;
+                let mut d = det(x, 50.0, 4.0, 0.0);
+                d.pixels = 800;
+                if n >= 10 {
+                    d.centroid = (x + 14.0, 50.0);
+                    d.foreground = Some(if (20..25).contains(&n) {
+                        (x + 14.0, 64.0)
+                    } else {
+                        (x + 0.5, 50.0)
+                    });
+                }
+                let out = tr.step(n, &[d], 1).unwrap();
+                if n >= 12 {
+                    assert_eq!(out.len(), 1, "frame {n}");
+                    let c = out[0].estimate.centroid;
+                    sideways = sideways.max((c.1 - 50.0).abs());
+                    if !(20..30).contains(&n) {
+                        worst = worst.max((c.0 - x).hypot(c.1 - 50.0));
+                    }
+                }
+            }
+            (worst, sideways)
+        };
+        // Taken where the prediction confirms it; the other object's centre, farther from the
+        // prediction than the flow's centroid, is not (the track is not pulled sideways).
+        let (adopted, sideways) = run(0.5);
+        assert!(
+            adopted < 3.0,
+            "the track strays {adopted} px from the object"
+        );
+        assert!(
+            sideways < 1.0,
+            "pulled {sideways} px towards the other object"
+        );
+        // Off, the smeared centroid pulls the track ahead of its object.
+        let (smeared, _) = run(0.0);
+        assert!(smeared > 10.0, "without it the track is {smeared} px off");
+        // Unit: nearer the prediction and within the gate, or not.
+        let mut d = det(30.0, 50.0, 4.0, 0.0);
+        d.pixels = 800;
+        d.foreground = Some((17.0, 50.0));
+        let at = |d: &Region, p| adopt_foreground(d, p, 0.5).and_then(|r| r.placed);
+        assert_eq!(at(&d, (16.0, 50.0)), Some((17.0, 50.0)));
+        assert_eq!(at(&d, (26.0, 50.0)), None, "the centroid is nearer");
+        assert_eq!(at(&d, (5.0, 50.0)), None, "12 px: beyond 0.5 × 16 px");
+        d.placed = Some((20.0, 50.0));
+        assert_eq!(at(&d, (16.0, 50.0)), None, "already placed");
     }
 }

@@ -25,6 +25,11 @@ pub struct Region {
     /// (`track::still_background`): the trajectory filter measures this instead of the
     /// flow's centroid; association and confirmation keep the flow's.
     pub placed: Option<(f64, f64)>,
+    /// The foreground's centre when the still background found one too far from the flow's
+    /// centroid to place the region there (`Placement::Far`): the tracker takes it for the
+    /// object's centre where it lies nearer the track's prediction than the flow's centroid
+    /// does, within the same share of the region's radius.
+    pub foreground: Option<(f64, f64)>,
     /// The region's motion (px/frame) that the frames confirm (`track::align`), when the
     /// alignment ran and explained the frames better than the mean flow: the speed and
     /// direction samples of the trajectory fits (Eqs. S20–S21) take it for the flow's.
@@ -183,6 +188,7 @@ impl Region {
             bbox,
             mean_flow: (su / nf, sv / nf),
             placed: None,
+            foreground: None,
             aligned: None,
         }
     }

@@ -174,6 +174,15 @@ impl PlaceConfig {
 pub enum Placement {
     /// The foreground's centre, where the region's centroid moves.
     Moved { to: (f64, f64) },
+    /// Kept at the flow's centroid, though the foreground has a centre at `to`, more than
+    /// `max_shift` of the region's radius away (`shift` px; the limit `limit` px): another
+    /// object's, or this one's where the flow smeared its motion far along its path. The
+    /// tracker takes it where its own prediction confirms it (`Region::foreground`).
+    Far {
+        to: (f64, f64),
+        shift: f64,
+        limit: f64,
+    },
     /// Kept at the flow's centroid, and why.
     Kept(String),
 }
@@ -184,6 +193,11 @@ impl Placement {
             Placement::Moved { to } => {
                 format!("placed on the foreground at ({:.1}, {:.1})", to.0, to.1)
             }
+            Placement::Far { to, shift, limit } => format!(
+                "flow centroid kept: the foreground's centre ({:.1}, {:.1}) is {shift:.1} px away \
+                 (more than {limit:.1})",
+                to.0, to.1
+            ),
             Placement::Kept(why) => format!("flow centroid kept: {why}"),
         }
     }
@@ -246,10 +260,7 @@ impl StillBackground {
                     let fg = fg.get_or_insert_with(|| {
                         Foreground::new(&self.frames, frame, cfg.window, cfg.k)
                     });
-                    match fg.place(c, area, cfg) {
-                        Ok(to) => Placement::Moved { to },
-                        Err(why) => Placement::Kept(why),
-                    }
+                    fg.place(c, area, cfg)
                 })
                 .collect()
         };
@@ -360,12 +371,7 @@ impl<'a> Foreground<'a> {
 
     /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`;
     /// the new centre, or why it is refused.
-    fn place(
-        &self,
-        start: (f64, f64),
-        area: usize,
-        cfg: &PlaceConfig,
-    ) -> std::result::Result<(f64, f64), String> {
+    fn place(&self, start: (f64, f64), area: usize, cfg: &PlaceConfig) -> Placement {
         let (w, h) = (self.current.width, self.current.height);
         let radius = (area as f64 / std::f64::consts::PI).sqrt().max(2.0);
         let mut p = start;
@@ -383,7 +389,7 @@ impl<'a> Foreground<'a> {
                 }
             }
             if sw <= 0.0 {
-                return Err("no foreground near the region".into());
+                return Placement::Kept("no foreground near the region".into());
             }
             let next = (sx / sw, sy / sw);
             let step = (next.0 - p.0).hypot(next.1 - p.1);
@@ -392,19 +398,21 @@ impl<'a> Foreground<'a> {
                 break;
             }
         }
-        let shift = (p.0 - start.0).hypot(p.1 - start.1);
-        if shift > cfg.max_shift * radius {
-            return Err(format!(
-                "the foreground's centre is {shift:.1} px away (more than {:.1})",
-                cfg.max_shift * radius
-            ));
-        }
         if (cover as f64) < cfg.min_cover * area as f64 {
-            return Err(format!(
+            return Placement::Kept(format!(
                 "{cover} foreground pixels for a region of {area} (the object joined the background?)"
             ));
         }
-        Ok(p)
+        let shift = (p.0 - start.0).hypot(p.1 - start.1);
+        let limit = cfg.max_shift * radius;
+        if shift > limit {
+            return Placement::Far {
+                to: p,
+                shift,
+                limit,
+            };
+        }
+        Placement::Moved { to: p }
     }
 }
 
@@ -512,6 +520,26 @@ mod tests {
             }
             other => panic!("not placed: {other:?}"),
         }
+    }
+
+    #[test]
+    fn a_foreground_centre_too_far_from_the_flow_centroid_is_reported_not_taken() {
+        let n = 34;
+        let (mut m, f) = model_at(n, moving);
+        let truth = moving(n);
+        // A blob of twice the disc's area (equivalent radius 11.3 px), 8 px ahead of it: more
+        // than half its radius, but the disc lies within its search disc.
+        let area = (2.0 * std::f64::consts::PI * R * R) as usize;
+        let out = m.place(&f, 0.0, &[((truth.0 + 8.0, truth.1), area)]);
+        match &out[0] {
+            Placement::Far { to, shift, limit } => {
+                let err = (to.0 - truth.0).hypot(to.1 - truth.1);
+                assert!(err < 1.5, "found at {to:?}, object at {truth:?}");
+                assert!(shift > limit, "{shift} {limit}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(out[0].describe().contains("flow centroid kept"));
     }
 
     #[test]

@@ -62,6 +62,12 @@ pub struct TrackerConfig {
     pub appearance_k: f64,
     pub appearance_floor: f64,
     pub appearance_px: f64,
+    /// A matched region that the still background could not place because the foreground's
+    /// centre lay too far from its flow centroid (`Region::foreground`) is placed there after
+    /// all when that centre lies nearer the track's prediction than the flow centroid does,
+    /// and within this share of the region's equivalent radius of the prediction: the motion
+    /// model, not the smeared flow, vouches for it. 0 turns it off.
+    pub foreground_gate: f64,
     /// Matching cascade (DeepSORT's): the confirmed tracks are matched first, the tentative
     /// ones then to the detections left. Without it, one assignment over all tracks
     /// maximises the number of matches, so a tentative track born on a fragment can push a
@@ -99,6 +105,7 @@ impl Default for TrackerConfig {
             appearance_k: 6.0,
             appearance_floor: 8.0,
             appearance_px: 5.0,
+            foreground_gate: 0.5,
             match_cascade: false,
             reid_frames: 150,
             reid_k: 3.0,
