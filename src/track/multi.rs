@@ -344,6 +344,8 @@ impl Tracker {
                         "partial"
                     } else if t.confirmed && !was_confirmed {
                         "confirmed"
+                    } else if adopted.is_some() {
+                        "placed by prediction"
                     } else if t.confirmed {
                         "tracked"
                     } else {
@@ -932,7 +934,7 @@ mod tests {
                 ..TrackerConfig::default()
             })
             .unwrap();
-            let (mut worst, mut sideways) = (0.0f64, 0.0f64);
+            let (mut worst, mut sideways, mut adopted) = (0.0f64, 0.0f64, 0);
             for n in 0..30 {
                 let x = 10.0 + 4.0 * n as f64;
                 let mut d = det(x, 50.0, 4.0, 0.0);
@@ -946,6 +948,8 @@ mod tests {
                     });
                 }
                 let out = tr.step(n, &[d], 1).unwrap();
+                let state = tr.assignments[0].as_ref().map(|a| a.state);
+                adopted += usize::from(state == Some("placed by prediction"));
                 if n >= 12 {
                     assert_eq!(out.len(), 1, "frame {n}");
                     let c = out[0].estimate.centroid;
@@ -955,22 +959,24 @@ mod tests {
                     }
                 }
             }
-            (worst, sideways)
+            (worst, sideways, adopted)
         };
-        // Taken where the prediction confirms it; the other object's centre, farther from the
-        // prediction than the flow's centroid, is not (the track is not pulled sideways).
-        let (adopted, sideways) = run(0.5);
-        assert!(
-            adopted < 3.0,
-            "the track strays {adopted} px from the object"
-        );
+        // Taken where the prediction confirms it (frames 10–19); the other object's centre,
+        // farther from the prediction than the flow's centroid, is not (the track is not
+        // pulled sideways). After five frames on the smeared centroid the prediction lies
+        // nearer it than the object's centre, which is then no longer taken (frames 25–29):
+        // the rule trusts the motion model only while it has been on the object.
+        let (worst, sideways, adopted) = run(0.5);
+        assert!(worst < 3.0, "the track strays {worst} px from the object");
         assert!(
             sideways < 1.0,
             "pulled {sideways} px towards the other object"
         );
+        assert_eq!(adopted, 10, "frames placed by the prediction");
         // Off, the smeared centroid pulls the track ahead of its object.
-        let (smeared, _) = run(0.0);
+        let (smeared, _, adopted) = run(0.0);
         assert!(smeared > 10.0, "without it the track is {smeared} px off");
+        assert_eq!(adopted, 0);
         // Unit: nearer the prediction and within the gate, or not.
         let mut d = det(30.0, 50.0, 4.0, 0.0);
         d.pixels = 800;
