@@ -28,7 +28,7 @@ pub struct Region {
     /// The foreground's centre when the still background found one too far from the flow's
     /// centroid to place the region there (`Placement::Far`): the tracker takes it for the
     /// object's centre where it lies nearer the track's prediction than the flow's centroid
-    /// does, within the same share of the region's radius.
+    /// does, within `TrackerConfig::foreground_gate` of the region's radius of it.
     pub foreground: Option<(f64, f64)>,
     /// The region's motion (px/frame) that the frames confirm (`track::align`), when the
     /// alignment ran and explained the frames better than the mean flow: the speed and

@@ -369,8 +369,9 @@ impl<'a> Foreground<'a> {
         (s / n.max(1) as f64).sqrt()
     }
 
-    /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`;
-    /// the new centre, or why it is refused.
+    /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`:
+    /// the new centre (`Moved`), a centre too far from `start` (`Far`), or why there is none
+    /// (`Kept`).
     fn place(&self, start: (f64, f64), area: usize, cfg: &PlaceConfig) -> Placement {
         let (w, h) = (self.current.width, self.current.height);
         let radius = (area as f64 / std::f64::consts::PI).sqrt().max(2.0);
