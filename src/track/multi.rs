@@ -1,8 +1,9 @@
 //! Many objects (Movie S2): every region above a minimum area is a detection; tracks keep
 //! their IDs through optimal assignment on the distance to each track's predicted position,
 //! with a gate; a track is confirmed after `confirm` consecutive hits whose motion is
-//! consistent (the centre moved as the regions' flow said it would, which a blob of
-//! spurious flow on a still background does not do) and ended after `patience` consecutive
+//! consistent (the centre moved as the regions' motion said it would, the motion the frames
+//! confirm where the alignment ran and the flow's otherwise, which a blob of spurious flow on a
+//! still background does not do) and ended after `patience` consecutive
 //! misses, so one missed detection does not change an ID; a track that coasts out of the frame
 //! ends at once (its object has left the view). IDs are given at confirmation. When
 //! two objects merge into one region, the tracks on it coast until it splits. Each track has
@@ -65,7 +66,9 @@ struct Track {
     /// An internal key, given at birth, for the debug output.
     key: usize,
     mtp: Mtp,
-    /// The last `confirm` hits (centre, mean flow) while the track is tentative.
+    /// The last `confirm` hits while the track is tentative: the region's centre (the placed
+    /// one where the still background placed it), its mean flow and the motion the frames
+    /// confirm (the aligned one, the mean flow where the alignment did not run).
     window: VecDeque<Hit>,
     hits: usize,
     misses: usize,
@@ -299,7 +302,7 @@ impl Tracker {
                 t.hits += 1;
                 t.misses = 0;
                 if !t.confirmed {
-                    t.window.push_back((d.centroid, d.mean_flow));
+                    t.window.push_back(hit(d));
                     while t.window.len() > confirm {
                         t.window.pop_front();
                     }
@@ -453,7 +456,7 @@ impl Tracker {
                 top_speed: 0.0,
                 key: self.next_key,
                 mtp,
-                window: VecDeque::from([(d.centroid, d.mean_flow)]),
+                window: VecDeque::from([hit(d)]),
                 hits: 1,
                 misses: 0,
                 confirmed: false,
@@ -529,6 +532,17 @@ impl Tracker {
             Err(j) => (self.lost.swap_remove(j).id, false),
         })
     }
+}
+
+/// A tentative track's hit on `d`: the object's centre and motion as the frames measure them
+/// (the placed centre, the aligned motion), besides the flow's mean: a flow that gives a small
+/// mover a third of its motion would otherwise hold it back for as long as it is seen.
+fn hit(d: &Region) -> Hit {
+    (
+        d.placed.unwrap_or(d.centroid),
+        d.mean_flow,
+        d.aligned.unwrap_or(d.mean_flow),
+    )
 }
 
 #[cfg(test)]
@@ -871,6 +885,43 @@ mod tests {
         ] {
             assert!(Tracker::new(c).is_err());
         }
+    }
+
+    /// A small mover whose flow gives it a third of its motion (4 px/frame against 12): its
+    /// centre moves three times as far as the flows say, so on the flow alone it is held back
+    /// for as long as it is seen. The frames' alignment measures its motion, and with it the
+    /// track is confirmed at the fifth hit. A still blob with the same flow, whose alignment
+    /// finds no motion, stays tentative either way; a placed centre that jumps about while the
+    /// flow's centroid moves smoothly holds the track back too.
+    #[test]
+    fn a_mover_is_confirmed_on_the_motion_the_frames_confirm() {
+        let run = |aligned: bool, jitter: f64| {
+            let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
+            let mut first = None;
+            for n in 0..20 {
+                let x = 30.0 + 12.0 * n as f64;
+                let mover = Region {
+                    aligned: aligned.then_some((12.0, 0.0)),
+                    placed: Some((x, 60.0 + jitter * (n % 3) as f64)),
+                    ..det(x, 60.0, 4.0, 0.0)
+                };
+                let blob = Region {
+                    aligned: aligned.then_some((0.1, 0.0)),
+                    ..det(200.0, 150.0, 4.0, 0.0)
+                };
+                let out = tr.step(n, &[mover, blob], 1).unwrap();
+                for t in &out {
+                    assert!(t.estimate.centroid.1 < 100.0, "the blob confirmed at {n}");
+                }
+                if first.is_none() && !out.is_empty() {
+                    first = Some(n);
+                }
+            }
+            first
+        };
+        assert_eq!(run(true, 0.0), Some(4));
+        assert_eq!(run(false, 0.0), None);
+        assert_eq!(run(true, 25.0), None);
     }
 
     #[test]

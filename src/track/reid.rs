@@ -5,6 +5,12 @@
 
 use super::appearance::Appearance;
 
+/// How far past its top speed an object may have gone while unseen: the top speed is the
+/// largest motion its detections showed (aligned by the frames where they were), so a quarter
+/// more covers an object that sped up out of sight; twice the top speed let a track on one
+/// object take the ID of another, slower one lost 8 frames before and 276 px away.
+pub(crate) const REACH_SPEED_FACTOR: f64 = 1.25;
+
 /// A confirmed track that ended, remembered so its object can take the ID back.
 pub(crate) struct Lost {
     pub id: usize,
@@ -26,7 +32,8 @@ pub(crate) struct Candidate<'a> {
 /// The colour distance (standard deviations of the old track's colour, each at least
 /// `floor` levels) at which a new track, first detected at `born` (frame, centre) with mean
 /// colour `colour`, may be the object of `c`; `None` where it cannot: born before `c` was
-/// last seen, farther than `gate_px` + 2 × `c`'s top speed × the frames between, or more than
+/// last seen, farther than `gate_px` + `REACH_SPEED_FACTOR` × `c`'s top speed × the frames
+/// between, or more than
 /// `k` from its colour. An old track with too few colours is never re-identified.
 pub(crate) fn reid_distance(
     c: &Candidate,
@@ -40,7 +47,7 @@ pub(crate) fn reid_distance(
     if born.0 <= then || !c.appearance.is_mature() {
         return None;
     }
-    let reach = gate_px + 2.0 * c.top_speed * (born.0 - then) as f64;
+    let reach = gate_px + REACH_SPEED_FACTOR * c.top_speed * (born.0 - then) as f64;
     let dist = (born.1.0 - at.0).hypot(born.1.1 - at.1);
     let d = c.appearance.distance(colour, floor);
     (dist <= reach && d <= k).then_some(d)
@@ -61,7 +68,7 @@ mod tests {
     #[test]
     fn a_new_track_is_the_old_object_only_if_it_could_have_got_there_in_its_colour() {
         let a = red();
-        // Last seen at frame 20 at (100, 100), at most 3 px/frame: 40 + 6 px per frame.
+        // Last seen at frame 20 at (100, 100), at most 3 px/frame: 40 + 3.75 px per frame.
         let c = Candidate {
             last_seen: (20, (100.0, 100.0)),
             top_speed: 3.0,
@@ -69,12 +76,12 @@ mod tests {
         };
         let score = |born, colour| reid_distance(&c, born, colour, 40.0, 8.0, 3.0);
         let same = [201.0, 41.0, 39.0];
-        // Ten frames later, 90 px away (within 100): its colour, a small distance.
-        let d = score((30, (190.0, 100.0)), same).expect("re-identified");
+        // Ten frames later, 75 px away (within 77.5): its colour, a small distance.
+        let d = score((30, (175.0, 100.0)), same).expect("re-identified");
         assert!(d < 0.5, "{d}");
-        // 110 px away is farther than it could have gone; born before it was last seen, or in
-        // the frame it was, it is another object.
-        assert_eq!(score((30, (210.0, 100.0)), same), None);
+        // 80 px away is farther than it could have gone (twice its top speed would reach 100
+        // px); born before it was last seen, or in the frame it was, it is another object.
+        assert_eq!(score((30, (180.0, 100.0)), same), None);
         assert_eq!(score((20, (101.0, 100.0)), same), None);
         assert_eq!(score((15, (101.0, 100.0)), same), None);
         // Green, where it could be: not it.

@@ -23,7 +23,8 @@ pub struct Region {
     pub mean_flow: (f64, f64),
     /// The object's centre in the frame, when the still background found it
     /// (`track::still_background`): the trajectory filter measures this instead of the
-    /// flow's centroid; association and confirmation keep the flow's.
+    /// flow's centroid, as does confirmation's consistency test; association keeps the
+    /// flow's.
     pub placed: Option<(f64, f64)>,
     /// The foreground's centre when the still background found one too far from the flow's
     /// centroid to place the region there (`Placement::Far`): the tracker takes it for the

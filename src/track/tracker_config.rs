@@ -20,8 +20,10 @@ pub struct TrackerConfig {
     /// Misses before a track ends.
     pub patience: usize,
     /// Motion consistency over the confirmation window: the centre's displacement from the
-    /// first to the last hit must match the sum of the regions' flows within
-    /// `consistency_px + consistency_rel × |sum of flows|`. Infinite turns the test off.
+    /// first to the last hit must match the sum of the regions' motions (the aligned motion
+    /// where the frames confirmed it, the mean flow otherwise; the centre the placed one where
+    /// there is one) within `consistency_px + consistency_rel × |sum|`. Infinite turns the
+    /// test off.
     pub consistency_px: f64,
     pub consistency_rel: f64,
     /// An estimated flow may underestimate a small mover (it smooths the object into its
@@ -78,8 +80,8 @@ pub struct TrackerConfig {
     /// re-identification off.
     pub reid_frames: usize,
     /// A track being confirmed takes the ID of an ended (or a coasting) track when it was born
-    /// after that track was last seen, within `gate_px` + 2 × the track's top speed × the
-    /// frames between, and its mean colour lies within this many of the old track's standard
+    /// after that track was last seen, within `gate_px` + 1.25 × the track's top speed × the
+    /// frames between (`reid::REACH_SPEED_FACTOR`), and its mean colour lies within this many of the old track's standard
     /// deviations (`appearance_floor` at least); of several, the nearest in colour. Both need
     /// colours (frames).
     pub reid_k: f64,
