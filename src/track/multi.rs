@@ -57,7 +57,6 @@ fn median(values: &VecDeque<usize>) -> Option<f64> {
     Some(*v.select_nth_unstable(mid).1 as f64)
 }
 
-/// A tentative track's hit: the region's centre and its mean flow.
 use super::consistency::{Consistency, Hit};
 
 struct Track {
