@@ -75,11 +75,17 @@ impl Consistency {
         }
         let k = window.len() - 1;
         let (fu, fv) = frames.said;
+        let (fe, ft) = (frames.err, frames.tol);
+        let by_frames = if fe > ft {
+            format!("off by {fe:.1} > {ft:.1}")
+        } else {
+            format!("agreed, but it moved {na:.1} <= {ft:.1} px: standing still")
+        };
         Some(format!(
             "inconsistent motion over {k} frames: the centre moved ({au:.1}, {av:.1}) px, the \
              flow says ({pu:.1}, {pv:.1}) px (off by {:.1} > {:.1}), the frames ({fu:.1}, \
-             {fv:.1}) px (off by {:.1} > {:.1}, or no farther than that)",
-            flow.err, flow.tol, frames.err, frames.tol
+             {fv:.1}) px ({by_frames})",
+            flow.err, flow.tol
         ))
     }
 }
@@ -146,6 +152,12 @@ mod tests {
         // with its centre, but it did not move, so it is no mover.
         let reason = c.verdict(&window(0.0, 4.0, 0.1)).expect("held");
         assert!(reason.contains("the frames (0.4, 0.0)"), "{reason}");
+        assert!(reason.contains("standing still"), "{reason}");
+        let reason = c.verdict(&window(48.0, 4.0, 6.0)).expect("held");
+        assert!(
+            reason.contains("the frames (24.0, 0.0) px (off by 24.0"),
+            "{reason}"
+        );
         // A slow mover whose flow is right passes on the flow alone.
         assert!(c.verdict(&window(2.0, 0.5, 0.1)).is_none());
     }
