@@ -147,8 +147,8 @@ struct RunArgs {
     /// this fraction of the residual with the background's motion.
     #[arg(long, default_value_t = 0.8)]
     max_residual_ratio: f64,
-    /// Confirmation window: consecutive detections, moving as their flow says, before a track
-    /// is reported.
+    /// Confirmation window: consecutive detections, moving as their flow says (or, with
+    /// `--align on`, as the motion the frames confirm says), before a track is reported.
     #[arg(long, default_value_t = 5)]
     confirm: usize,
     /// Confirmation: the centre may move up to this many times the sum of its flows, in
