@@ -4,7 +4,10 @@
 For every accepted region in `pins track --debug DIR`'s regions.jsonl whose flow centroid lies
 within 1.2 radii of a true object centre (and has at least --min-area pixels), compares the
 region's mean flow and, where the alignment ran, its aligned motion (`aligned`) with the
-object's true displacement to the next frame (truth.json of `pins track render`).
+object's true displacement to the next frame (truth.json of `pins track render`): the error's
+size, and its signed part along the true motion (the speed found minus the true speed, over
+displacements of at least 0.5 px; negative: the motion falls short), in px and as a share of the
+true speed.
 
     python3 scripts/region_motion_error.py CLIP/truth.json DEBUG_DIR [--min-area 300]
 """
@@ -26,6 +29,7 @@ def main():
     except (OSError, ValueError) as e:
         sys.exit(f"region_motion_error: {e}")
     flow_err, aligned_err, with_aligned = [], [], 0
+    flow_along, aligned_along = [], []
     for line in lines:
         d = json.loads(line)
         f = d["frame"]
@@ -48,6 +52,11 @@ def main():
             with_aligned += "aligned" in r
             flow_err.append(math.hypot(fx - tx, fy - ty))
             aligned_err.append(math.hypot(ax - tx, ay - ty))
+            speed = math.hypot(tx, ty)
+            if speed >= 0.5:
+                ux, uy = tx / speed, ty / speed
+                flow_along.append((fx * ux + fy * uy - speed, speed))
+                aligned_along.append((ax * ux + ay * uy - speed, speed))
     if not flow_err:
         sys.exit("region_motion_error: no accepted region lies on an object")
 
@@ -62,6 +71,18 @@ def main():
     print(f"regions on objects: {len(flow_err)}, aligned: {with_aligned}")
     print(f"mean flow error (px): {stats(flow_err)}")
     print(f"motion used error (px): {stats(aligned_err)}")
+
+    def along(v):
+        if not v:
+            return "no displacement of 0.5 px or more"
+        return "mean %+.2f px (%+.1f %% of the true speed) over %d" % (
+            sum(e for e, _ in v) / len(v),
+            100 * sum(e for e, _ in v) / sum(s for _, s in v),
+            len(v),
+        )
+
+    print(f"mean flow along the true motion: {along(flow_along)}")
+    print(f"motion used along the true motion: {along(aligned_along)}")
 
 
 if __name__ == "__main__":
