@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::align::align;
+use super::align::{ALIGN_WEIGHTS, align};
 use super::background::{BackgroundModel, GlobalMotion, fit};
 use super::change::change_mask;
 use super::grow::{grow, seed_motion};
@@ -72,6 +72,10 @@ pub struct DetectConfig {
     pub align: Option<bool>,
     /// The alignment searches at most this many pixels from the mean flow on each axis.
     pub align_reach: usize,
+    /// The weights of the R, G and B residuals in the alignment (`track::align::ALIGN_WEIGHTS`:
+    /// green first, as the metalens PSF is sharp in green and broad in red and blue; `[1, 1, 1]`
+    /// for a camera whose channels are equally sharp). Grey frames ignore them.
+    pub align_weights: [f64; 3],
     /// With frames and a still camera: each accepted region's centroid moves to its object in
     /// the frame (where it differs from the temporal median of the last frames;
     /// `track::still_background`).
@@ -95,6 +99,7 @@ impl Default for DetectConfig {
             trim: true,
             align: None,
             align_reach: 24,
+            align_weights: ALIGN_WEIGHTS,
             place: PlaceConfig::default(),
         }
     }
@@ -166,6 +171,20 @@ impl DetectConfig {
             return Err(Error::invalid(
                 "detect.align_reach",
                 format!("must be 1..=256 px, got {}", self.align_reach),
+            ));
+        }
+        if self
+            .align_weights
+            .iter()
+            .any(|w| !(w.is_finite() && *w >= 0.0))
+            || self.align_weights.iter().sum::<f64>() <= 0.0
+        {
+            return Err(Error::invalid(
+                "detect.align_weights",
+                format!(
+                    "must be three finite weights >= 0, not all 0, got {:?}",
+                    self.align_weights
+                ),
             ));
         }
         if self.background_samples < 16 || self.background_samples > 100_000_000 {
@@ -361,6 +380,7 @@ pub fn detect(
                     &pixels,
                     region.mean_flow,
                     cfg.align_reach,
+                    cfg.align_weights,
                 )
                 .filter(|a| a.residual < a.start_residual)
                 .map(|a| a.motion);
