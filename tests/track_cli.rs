@@ -85,6 +85,32 @@ fn tracks_two_objects_and_rejects_bad_folders() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("0099.flo"));
     assert!(!d.path().join("x").join("tracks.json").exists());
+
+    // Alignment weights: three, finite, non-negative, not all zero; refused before any output.
+    for (weights, says) in [
+        ("1,2", "three weights"),
+        ("1,-1,1", "align_weights"),
+        ("0,0,0", "align_weights"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_pins"))
+            .args([
+                "track",
+                "--flows",
+                flows.to_str().unwrap(),
+                "--out",
+                d.path().join("w").to_str().unwrap(),
+                "--align-weights",
+                weights,
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(says),
+            "{weights}: {err}"
+        );
+        assert!(!d.path().join("w").exists(), "{weights}");
+    }
 }
 
 /// Writes a clip config and renders it with `pins track render`.
