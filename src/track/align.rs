@@ -100,6 +100,11 @@ impl Patch {
 /// weights the aligned motion of the single-disc clips falls 4–9 % short of the true motion.
 pub const ALIGN_WEIGHTS: [f64; 3] = [0.25, 1.0, 0.25];
 
+/// Channel weights the alignment takes: finite, non-negative, not all zero.
+pub fn weights_valid(weights: &[f64; 3]) -> bool {
+    weights.iter().all(|w| w.is_finite() && *w >= 0.0) && weights.iter().sum::<f64>() > 0.0
+}
+
 /// Of all shifts, a pixel set must keep this share of its pixels inside frame 2.
 const MIN_INSIDE: f64 = 0.75;
 /// The integer search uses at most this many of the region's pixels (evenly spread).
@@ -149,7 +154,7 @@ pub fn align(
         y1 as i64 + cy + reach + 2,
     );
     let channels = a.channels;
-    if weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) || weights.iter().sum::<f64>() <= 0.0 {
+    if !weights_valid(&weights) {
         return None;
     }
     // Per channel: [C].

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::align::{ALIGN_WEIGHTS, align};
+use super::align::{ALIGN_WEIGHTS, align, weights_valid};
 use super::background::{BackgroundModel, GlobalMotion, fit};
 use super::change::change_mask;
 use super::grow::{grow, seed_motion};
@@ -173,12 +173,7 @@ impl DetectConfig {
                 format!("must be 1..=256 px, got {}", self.align_reach),
             ));
         }
-        if self
-            .align_weights
-            .iter()
-            .any(|w| !(w.is_finite() && *w >= 0.0))
-            || self.align_weights.iter().sum::<f64>() <= 0.0
-        {
+        if !weights_valid(&self.align_weights) {
             return Err(Error::invalid(
                 "detect.align_weights",
                 format!(
