@@ -130,6 +130,7 @@ pub fn align(
         || first.channels != second.channels
         || pixels.is_empty()
         || !(start.0.is_finite() && start.1.is_finite())
+        || !weights_valid(&weights)
     {
         return None;
     }
@@ -154,9 +155,6 @@ pub fn align(
         y1 as i64 + cy + reach + 2,
     );
     let channels = a.channels;
-    if !weights_valid(&weights) {
-        return None;
-    }
     // Per channel: [C].
     let cw: Vec<f32> = if channels == 3 {
         weights.iter().map(|&w| w as f32).collect()
@@ -268,6 +266,7 @@ pub fn align(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::imaging::box_filter::box_mean;
     use crate::rng::stream;
     use crate::types::Image;
     use rand_distr::{Distribution, StandardNormal};
@@ -376,32 +375,23 @@ mod tests {
             }
         };
         let draw = |centre: (f64, f64)| {
-            let sharp: Vec<Vec<f64>> = (0..3)
-                .map(|c| {
-                    (0..w * h)
-                        .map(|i| scene(centre, c, (i % w) as f64, (i / w) as f64))
-                        .collect()
-                })
-                .collect();
             let mut img = Image::zeros(3, h, w);
-            for (c, plane) in sharp.iter().enumerate() {
-                for y in 0..h {
-                    for x in 0..w {
-                        let v = plane[y * w + x];
-                        let out = if c == 1 {
-                            v
-                        } else {
-                            let (mut s, mut n) = (0.0, 0.0);
-                            for yy in y.saturating_sub(12)..(y + 13).min(h) {
-                                for xx in x.saturating_sub(12)..(x + 13).min(w) {
-                                    s += plane[yy * w + xx];
-                                    n += 1.0;
-                                }
-                            }
-                            0.35 * v + 0.65 * s / n
-                        };
-                        img.set(c, y, x, out as f32);
-                    }
+            for c in 0..3 {
+                let sharp: Vec<f32> = (0..w * h)
+                    .map(|i| scene(centre, c, (i % w) as f64, (i / w) as f64) as f32)
+                    .collect();
+                let out = if c == 1 {
+                    sharp
+                } else {
+                    let (blurred, _) = box_mean(&sharp, w, h, 12);
+                    sharp
+                        .iter()
+                        .zip(&blurred)
+                        .map(|(v, b)| 0.35 * v + 0.65 * b)
+                        .collect()
+                };
+                for (i, v) in out.into_iter().enumerate() {
+                    img.set(c, i / w, i % w, v);
                 }
             }
             ColourFrame::new(&img)
