@@ -111,6 +111,27 @@ fn tracks_two_objects_and_rejects_bad_folders() {
         );
         assert!(!d.path().join("w").exists(), "{weights}");
     }
+
+    // The split's separation: finite and non-negative.
+    for bad in ["-0.5", "NaN"] {
+        let o = Command::new(env!("CARGO_BIN_EXE_pins"))
+            .args([
+                "track",
+                "--flows",
+                flows.to_str().unwrap(),
+                "--out",
+                d.path().join("s").to_str().unwrap(),
+                &format!("--split-separation={bad}"),
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains("detect.place.split"),
+            "{bad}: {err}"
+        );
+        assert!(!d.path().join("s").exists(), "{bad}");
+    }
 }
 
 /// Writes a clip config and renders it with `pins track render`.

@@ -145,6 +145,12 @@ struct RunArgs {
     /// Placement: frames in the background's temporal median.
     #[arg(long, default_value_t = 30)]
     place_frames: usize,
+    /// Placement: a region over the predictions of two or more confirmed tracks (their objects
+    /// met in the flow) is split between them where the frame's foreground shows an object
+    /// near each prediction, at least this share of the sum of their radii apart; 0 turns the
+    /// split off (the tracks on the region coast until it splits in the flow)
+    #[arg(long, default_value_t = 0.5)]
+    split_separation: f64,
     /// Change test: do not trim from each grown region the pixels that the background's
     /// motion explains better than the region's (the halo of an estimated flow).
     #[arg(long)]
@@ -377,6 +383,7 @@ fn run(a: RunArgs) -> Result<()> {
             },
             frames: a.place_frames,
             min_frames: PlaceConfig::default().min_frames.min(a.place_frames.max(1)),
+            split: a.split_separation,
             ..PlaceConfig::default()
         },
         ..DetectConfig::default()

@@ -66,7 +66,7 @@ impl LiveTracker {
         let o = &self.opts;
         let mut found = detect(flow, pair, o.threshold, o.noise_k, o.min_area, &o.detect)?;
         if let (Some(model), Some(pair)) = (self.placer.as_mut(), pair) {
-            found.place(model, pair.first_colour());
+            found.place(model, pair.first_colour(), &self.tracker.seeds());
         }
         if let Some(pair) = pair {
             found.colour(pair.first_colour());

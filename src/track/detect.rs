@@ -16,6 +16,7 @@ use super::grow::{grow, seed_motion};
 use super::noise_floor::noise_floor;
 use super::photometric::GreyPair;
 use super::roi::{Region, components, regions_of};
+use super::split::{self, Seed};
 use super::still_background::{ColourFrame, PlaceConfig, Placement, StillBackground};
 use super::trim::trim;
 use crate::error::{Error, Result};
@@ -251,32 +252,59 @@ impl FrameDetection {
 
     /// Places the accepted regions on frame n (`frame`, its colour samples) with the still
     /// background, which then keeps the frame. The camera counts as still when the frames did
-    /// not support the fitted background motion or when that motion is small.
-    pub fn place(&mut self, model: &mut StillBackground, frame: &ColourFrame) {
+    /// not support the fitted background motion or when that motion is small. A region over
+    /// the predictions of two or more `seeds` (the confirmed tracks) is split between them
+    /// where the foreground shows an object near each (`track::split`): its parts take its
+    /// place in the candidates, one per track.
+    pub fn place(&mut self, model: &mut StillBackground, frame: &ColourFrame, seeds: &[Seed]) {
         let camera = match self.rejected_background {
             Some(_) => 0.0,
             None => self.background.max_magnitude(frame.width, frame.height),
         };
-        let wanted: Vec<((f64, f64), usize)> = self
-            .candidates
+        let accepted: Vec<&Candidate> = self.candidates.iter().filter(|c| c.accepted).collect();
+        let wanted: Vec<((f64, f64), usize)> = accepted
             .iter()
-            .filter(|c| c.accepted)
             .map(|c| (c.region.centroid, c.region.pixels))
             .collect();
-        let placed = model.place(frame, camera, &wanted);
-        for (c, p) in self
-            .candidates
-            .iter_mut()
-            .filter(|c| c.accepted)
-            .zip(placed)
-        {
-            match p {
-                Placement::Moved { to } => c.region.placed = Some(to),
-                Placement::Far { to, .. } => c.region.foreground = Some(to),
+        let hidden: Vec<Vec<Seed>> = accepted
+            .iter()
+            .map(|c| split::covered(&c.region, seeds))
+            .collect();
+        let at: Vec<Vec<((f64, f64), f64)>> = hidden
+            .iter()
+            .map(|h| h.iter().map(|s| (s.at, s.radius)).collect())
+            .collect();
+        let placed = model.place_or_split(frame, camera, &wanted, &at);
+        let mut out = Vec::with_capacity(self.candidates.len());
+        let mut next = placed.into_iter().zip(hidden);
+        for mut c in std::mem::take(&mut self.candidates) {
+            if !c.accepted {
+                out.push(c);
+                continue;
+            }
+            let Some((p, hidden)) = next.next() else {
+                out.push(c);
+                continue;
+            };
+            match &p {
+                Placement::Moved { to } => c.region.placed = Some(*to),
+                Placement::Far { to, .. } => c.region.foreground = Some(*to),
                 Placement::Kept(_) => {}
+                Placement::Split { to } => {
+                    for (seed, &at) in hidden.iter().zip(to) {
+                        out.push(Candidate {
+                            region: split::part(&c.region, seed, at, to.len()),
+                            placement: Some(p.clone()),
+                            ..c.clone()
+                        });
+                    }
+                    continue;
+                }
             }
             c.placement = Some(p);
+            out.push(c);
         }
+        self.candidates = out;
     }
 }
 
@@ -595,6 +623,87 @@ mod tests {
             let found = detect(&flow, Some(&pair), 0.5, 3.0, 20, &off).unwrap();
             assert!(found.accepted().iter().all(|r| r.aligned.is_none()));
         }
+    }
+
+    /// A region over two confirmed tracks' predictions, where the frame shows an object near
+    /// each, becomes two accepted parts, each placed on its object and moving as its track;
+    /// a rejected candidate stays as it was.
+    #[test]
+    fn a_merged_region_gives_one_part_per_track_it_hides() {
+        let (w, h) = (64, 40);
+        let centres = [(20.0, 20.0), (36.0, 20.0)];
+        let frame = |with: bool| {
+            let mut img = Image::zeros(3, h, w);
+            for y in 0..h {
+                for x in 0..w {
+                    let on = with
+                        && centres.iter().any(|&(cx, cy): &(f64, f64)| {
+                            (x as f64 - cx).hypot(y as f64 - cy) <= 6.0
+                        });
+                    for c in 0..3 {
+                        img.set(c, y, x, if on { 0.7 } else { 0.3 });
+                    }
+                }
+            }
+            ColourFrame::new(&img)
+        };
+        let mut model = StillBackground::new(PlaceConfig::default()).expect("default settings");
+        for _ in 0..12 {
+            model.place(&frame(false), 0.0, &[]);
+        }
+        let region = |c: (f64, f64), pixels| Region {
+            colour: None,
+            pixels,
+            centroid: c,
+            speed: 0.2,
+            direction: Some(0.0),
+            bbox: [10, 10, 46, 30],
+            mean_flow: (0.2, 0.0),
+            placed: None,
+            foreground: None,
+            aligned: None,
+        };
+        let candidate = |r: Region, accepted: bool| Candidate {
+            region: r,
+            residuals: None,
+            accepted,
+            reason: String::new(),
+            placement: None,
+        };
+        let mut found = FrameDetection {
+            background: GlobalMotion::zero(),
+            rejected_background: None,
+            threshold: 0.5,
+            change_level: None,
+            candidates: vec![
+                candidate(region((28.0, 20.0), 600), true),
+                candidate(region((55.0, 35.0), 30), false),
+            ],
+        };
+        let seed = |at, v| Seed {
+            at,
+            radius: 7.0,
+            velocity: (v, 0.0),
+        };
+        let seeds = [
+            seed((18.0, 21.0), 1.5),
+            seed((38.0, 19.0), -1.5),
+            seed((5.0, 5.0), 0.0),
+        ];
+        found.place(&mut model, &frame(true), &seeds);
+        let parts = found.accepted();
+        assert_eq!(parts.len(), 2, "{:?}", found.candidates);
+        for ((p, want), v) in parts.iter().zip(centres).zip([1.5, -1.5]) {
+            let at = p.placed.expect("placed");
+            assert!((at.0 - want.0).hypot(at.1 - want.1) < 1.0, "{p:?}");
+            assert_eq!((p.centroid, p.mean_flow, p.pixels), (at, (v, 0.0), 300));
+        }
+        assert!(matches!(
+            found.candidates[0].placement,
+            Some(Placement::Split { .. })
+        ));
+        assert_eq!(found.candidates.len(), 3);
+        assert!(!found.candidates[2].accepted && found.candidates[2].region.placed.is_none());
     }
 
     #[test]

@@ -25,6 +25,7 @@ pub mod predict;
 pub mod reid;
 pub mod roi;
 pub mod run;
+pub mod split;
 pub mod static_flow;
 pub mod still_background;
 pub mod tracker_config;

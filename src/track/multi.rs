@@ -21,6 +21,7 @@ use super::associate::{Association, Tracked, associate, covers};
 use super::mtp::{Estimate, Mtp};
 use super::reid::{Candidate, Lost, reid_distance};
 use super::roi::Region;
+use super::split::Seed;
 pub use super::tracker_config::TrackerConfig;
 use crate::error::{Error, Result};
 
@@ -207,6 +208,23 @@ impl Tracker {
     /// with its centre outside the frame ends instead of extrapolating on.
     pub fn set_frame_size(&mut self, width: usize, height: usize) {
         self.frame_size = Some((width as f64, height as f64));
+    }
+
+    /// The confirmed tracks seen within the confirmation window, where they are expected in the
+    /// next frame: the seeds of a merged region's split (`track::split`).
+    pub fn seeds(&self) -> Vec<Seed> {
+        self.tracks
+            .iter()
+            .filter(|t| t.confirmed && t.misses <= self.config.confirm)
+            .filter_map(|t| {
+                let area = median(&t.areas)?;
+                Some(Seed {
+                    at: t.predicted,
+                    radius: (area / std::f64::consts::PI).sqrt(),
+                    velocity: t.mtp.velocity(),
+                })
+            })
+            .collect()
     }
 
     /// Processes one frame's detections; returns the confirmed tracks' estimates with

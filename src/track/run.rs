@@ -291,7 +291,7 @@ pub fn track_sequence(
         )
         .map_err(|e| Error::invalid(format!("flow {name}"), e.to_string()))?;
         if let (Some(model), Some(pair)) = (placer.as_mut(), step.frames.as_ref()) {
-            found.place(model, pair.first_colour());
+            found.place(model, pair.first_colour(), &tracker.seeds());
         }
         if let Some(pair) = step.frames.as_ref() {
             found.colour(pair.first_colour());

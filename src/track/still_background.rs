@@ -98,6 +98,10 @@ pub struct PlaceConfig {
     /// this many times the sum of their equivalent radii (the foreground near it may be the
     /// other's: a crossing, or a fragment beside its object).
     pub crowd: f64,
+    /// Splitting a merged region (`track::split`): the foreground's centres found from the
+    /// predictions of the tracks it hides must lie at least this share of the sum of their
+    /// radii apart, or the region stays one (one object hides the other). 0 turns it off.
+    pub split: f64,
     /// Above this background motion (px/frame, its largest over the frame), the camera moves:
     /// the model starts over. Not lower: an estimated flow's global bias on a still scene
     /// reaches 0.5–0.8 px at the corners, and a sub-pixel warp's smoothing lets the frames
@@ -117,6 +121,7 @@ impl Default for PlaceConfig {
             max_shift: 0.5,
             min_cover: 0.25,
             crowd: 2.5,
+            split: 0.5,
             max_camera_motion: 2.0,
         }
     }
@@ -156,6 +161,7 @@ impl PlaceConfig {
             ("max_shift", self.max_shift),
             ("min_cover", self.min_cover),
             ("crowd", self.crowd),
+            ("split", self.split),
             ("max_camera_motion", self.max_camera_motion),
         ] {
             if !(v.is_finite() && v >= 0.0) {
@@ -185,6 +191,9 @@ pub enum Placement {
     },
     /// Kept at the flow's centroid, and why.
     Kept(String),
+    /// A merged region split between the tracks it hides: the foreground's centre found from
+    /// each one's prediction, in the order of the seeds (`track::split`).
+    Split { to: Vec<(f64, f64)> },
 }
 
 impl Placement {
@@ -199,6 +208,13 @@ impl Placement {
                 to.0, to.1
             ),
             Placement::Kept(why) => format!("flow centroid kept: {why}"),
+            Placement::Split { to } => {
+                let at: Vec<String> = to
+                    .iter()
+                    .map(|p| format!("({:.1}, {:.1})", p.0, p.1))
+                    .collect();
+                format!("split between the tracks it hides, at {}", at.join(", "))
+            }
         }
     }
 }
@@ -228,6 +244,21 @@ impl StillBackground {
         camera_motion: f64,
         regions: &[((f64, f64), usize)],
     ) -> Vec<Placement> {
+        self.place_or_split(frame, camera_motion, regions, &[])
+    }
+
+    /// As `place`, and each region with two or more seeds (the predictions and radii of the
+    /// tracks it hides, `seeds[i]` for region i; a shorter list means none) is split between
+    /// them where the foreground shows an object near each (`Placement::Split`): the
+    /// mean shift from each seed must be placed (within `max_shift` of its radius) and the
+    /// centres lie at least `split` × the sum of their radii apart.
+    pub fn place_or_split(
+        &mut self,
+        frame: &ColourFrame,
+        camera_motion: f64,
+        regions: &[((f64, f64), usize)],
+        seeds: &[Vec<((f64, f64), f64)>],
+    ) -> Vec<Placement> {
         let cfg = &self.cfg;
         let kept = |why: String| vec![Placement::Kept(why); regions.len()];
         let out = if camera_motion > cfg.max_camera_motion {
@@ -252,6 +283,15 @@ impl StillBackground {
                 .iter()
                 .enumerate()
                 .map(|(i, &(c, area))| {
+                    let mine = seeds.get(i).map_or(&[][..], Vec::as_slice);
+                    if cfg.split > 0.0 && mine.len() >= 2 {
+                        let fg = fg.get_or_insert_with(|| {
+                            Foreground::new(&self.frames, frame, cfg.window, cfg.k)
+                        });
+                        if let Some(to) = fg.split(mine, cfg) {
+                            return Placement::Split { to };
+                        }
+                    }
                     if let Some(d) = crowded(regions, i, cfg.crowd) {
                         return Placement::Kept(format!(
                             "another region {d:.0} px away shares its foreground"
@@ -369,6 +409,27 @@ impl<'a> Foreground<'a> {
         (s / n.max(1) as f64).sqrt()
     }
 
+    /// The foreground's centre near each seed (its prediction, its radius), when every seed
+    /// is placed and the centres lie at least `split` × the sum of their radii apart.
+    fn split(&self, seeds: &[((f64, f64), f64)], cfg: &PlaceConfig) -> Option<Vec<(f64, f64)>> {
+        let mut to = Vec::with_capacity(seeds.len());
+        for &(at, radius) in seeds {
+            let area = (std::f64::consts::PI * radius * radius).round() as usize;
+            match self.place(at, area.max(1), cfg) {
+                Placement::Moved { to: p } => to.push(p),
+                _ => return None,
+            }
+        }
+        for (i, (p, (_, ri))) in to.iter().zip(seeds).enumerate() {
+            for (q, (_, rj)) in to.iter().zip(seeds).skip(i + 1) {
+                if (p.0 - q.0).hypot(p.1 - q.1) < cfg.split * (ri + rj) {
+                    return None;
+                }
+            }
+        }
+        Some(to)
+    }
+
     /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`:
     /// the new centre (`Moved`), a centre too far from `start` (`Far`), or why there is none
     /// (`Kept`).
@@ -456,13 +517,19 @@ mod tests {
     /// Frame `n` of a still, textured colour background with a bluish disc of radius 8 whose
     /// centre is `centre(n)`, with sensor noise (σ = 3 levels).
     fn frame(n: usize, centre: impl Fn(usize) -> (f64, f64), seed: u64) -> ColourFrame {
+        discs(n, &[centre(n)], seed)
+    }
+
+    /// Frame `n` as `frame`'s, with a bluish disc of radius 8 at each of `centres`.
+    fn discs(n: usize, centres: &[(f64, f64)], seed: u64) -> ColourFrame {
         let mut rng = crate::rng::stream(seed, &[n as u64]);
         let mut img = Image::zeros(3, H, W);
-        let (cx, cy) = centre(n);
         for y in 0..H {
             for x in 0..W {
                 let (xf, yf) = (x as f64, y as f64);
-                let inside = (xf - cx).hypot(yf - cy) <= R;
+                let inside = centres
+                    .iter()
+                    .any(|&(cx, cy)| (xf - cx).hypot(yf - cy) <= R);
                 for c in 0..3 {
                     let bg = 0.35 + 0.1 * (xf * 0.2 + c as f64).sin() * (yf * 0.15).cos();
                     let obj = [0.25, 0.3, 0.55][c];
@@ -625,5 +692,80 @@ mod tests {
                 .to_string();
             assert!(e.contains(name), "{e}");
         }
+    }
+
+    #[test]
+    fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_shows_one() {
+        // Two discs of radius 8 meet: one moves right along y = 30, the other left along
+        // y = 46, their centres 16 px apart (8 px of background between them) at frame n.
+        let (n, area) = (34, (4.0 * std::f64::consts::PI * R * R) as usize);
+        let pair = |k: usize| {
+            let t = k as f64 - 34.0;
+            [(48.0 + 1.5 * t, 30.0), (48.0 - 1.5 * t, 46.0)]
+        };
+        let mut m = StillBackground::new(PlaceConfig::default()).expect("default settings");
+        for k in 0..n {
+            m.place(&discs(k, &pair(k), 7), 0.0, &[]);
+        }
+        let f = discs(n, &pair(n), 7);
+        let [a, b] = pair(n);
+        // The flow's one blob between them; the two tracks' predictions 3 px off their objects.
+        let merged = [((48.0, 38.0), area)];
+        let seeds = vec![vec![
+            ((a.0 - 3.0, a.1), 1.2 * R),
+            ((b.0 + 2.0, b.1 - 2.0), 1.2 * R),
+        ]];
+        let out = m.place_or_split(&f, 0.0, &merged, &seeds);
+        match &out[0] {
+            Placement::Split { to } => {
+                // Each centre on its own object, nearer it than its seed (3 and 2.8 px off):
+                // within 2.5 px, the kernel (radius 9.6) leaning a little to the other disc.
+                assert_eq!(to.len(), 2);
+                for ((got, want), (seed, _)) in to.iter().zip([a, b]).zip(&seeds[0]) {
+                    let err = (got.0 - want.0).hypot(got.1 - want.1);
+                    let before = (seed.0 - want.0).hypot(seed.1 - want.1);
+                    assert!(
+                        err < 2.5 && err < before,
+                        "split at {to:?}, objects at {a:?} and {b:?}"
+                    );
+                }
+            }
+            other => panic!("not split: {other:?}"),
+        }
+        assert!(
+            out[0]
+                .describe()
+                .starts_with("split between the tracks it hides")
+        );
+        // One seed alone splits nothing: the region is placed as any other.
+        let (mut m, f) = model_at(n, moving);
+        let truth = moving(n);
+        let one = [(truth, (1.5 * std::f64::consts::PI * R * R) as usize)];
+        let out = m.place_or_split(&f, 0.0, &one, &[vec![(truth, R)]]);
+        assert!(matches!(out[0], Placement::Moved { .. }), "{out:?}");
+        // Two seeds on one object (one hides the other): both find the same centre, and the
+        // region is not split.
+        let (mut m, f) = model_at(n, moving);
+        let seeds = vec![vec![
+            ((truth.0 - 3.0, truth.1), R),
+            ((truth.0 + 3.0, truth.1), R),
+        ]];
+        let out = m.place_or_split(&f, 0.0, &one, &seeds);
+        assert!(!matches!(out[0], Placement::Split { .. }), "{out:?}");
+        // Nor is it with the split turned off.
+        let cfg = PlaceConfig {
+            split: 0.0,
+            ..PlaceConfig::default()
+        };
+        let mut m = StillBackground::new(cfg).expect("valid settings");
+        for k in 0..n {
+            m.place(&discs(k, &pair(k), 7), 0.0, &[]);
+        }
+        let seeds = vec![vec![
+            ((a.0 - 3.0, a.1), 1.2 * R),
+            ((b.0 + 2.0, b.1 - 2.0), 1.2 * R),
+        ]];
+        let out = m.place_or_split(&discs(n, &pair(n), 7), 0.0, &merged, &seeds);
+        assert!(!matches!(out[0], Placement::Split { .. }), "{out:?}");
     }
 }
