@@ -230,7 +230,7 @@ pub struct FrameDetection {
 }
 
 impl FrameDetection {
-    /// The accepted regions, largest first.
+    /// The accepted regions, largest first (a split region's parts in its place).
     pub fn accepted(&self) -> Vec<Region> {
         self.candidates
             .iter()
