@@ -112,6 +112,26 @@ fn tracks_two_objects_and_rejects_bad_folders() {
         assert!(!d.path().join("w").exists(), "{weights}");
     }
 
+    // The fits' samples per order: at least 1.
+    let o = Command::new(env!("CARGO_BIN_EXE_pins"))
+        .args([
+            "track",
+            "--flows",
+            flows.to_str().unwrap(),
+            "--out",
+            d.path().join("o").to_str().unwrap(),
+            "--samples-per-order",
+            "0",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("samples_per_order"),
+        "{err}"
+    );
+    assert!(!d.path().join("o").exists());
+
     // The split's separation: finite and non-negative.
     for bad in ["-0.5", "NaN"] {
         let o = Command::new(env!("CARGO_BIN_EXE_pins"))

@@ -75,6 +75,12 @@ struct RunArgs {
     /// Polynomial order n.
     #[arg(long, default_value_t = 2)]
     order: usize,
+    /// A fit of order k waits for min(L, this × k + 1) samples, with a lower order until then,
+    /// so a new track's few noisy samples are not extrapolated by a quadratic; 1: the highest
+    /// order the samples determine (the paper's). Default: 5 where the samples are measured on
+    /// the frames (--align or --place on, as for MMS), 1 for a given flow's own
+    #[arg(long)]
+    samples_per_order: Option<usize>,
     /// Kalman measurement noise of a region's centroid (px²); the default suits the flow
     /// source (see `pins track --help` of --change-test).
     #[arg(long)]
@@ -316,6 +322,7 @@ fn run(a: RunArgs) -> Result<()> {
             },
             window: a.window,
             order: a.order,
+            samples_per_order: a.samples_per_order,
             position_r: a.position_r.unwrap_or(MtpConfig::default().position_r),
             motion_r: a.motion_r.unwrap_or(MtpConfig::default().motion_r),
             motion_source: match a.motion_source {

@@ -129,6 +129,19 @@ pub struct MotionFit {
 
 /// Fits Eqs. S20–S21 on the window `(t, speed, direction)` with linearly increasing weights.
 /// Samples whose direction is undefined (a still object) count in the speed fit only.
+/// The order a window of `samples` supports: `order`, lowered until the window holds
+/// min(`window`, `per_order` × k + 1) samples for order k. A track's first fits would
+/// otherwise pass a polynomial through its few noisy samples, and its extrapolation 30 frames
+/// ahead runs hundreds of pixels off. The full window always supports the full order (Note
+/// S14's fits of L = 10 are the paper's); `per_order` 1 lowers it only where the fit would be
+/// underdetermined (order ≤ samples − 1).
+pub fn supported_order(order: usize, samples: usize, window: usize, per_order: usize) -> usize {
+    (0..=order)
+        .rev()
+        .find(|&k| samples >= (per_order.saturating_mul(k).saturating_add(1)).min(window))
+        .unwrap_or(0)
+}
+
 pub fn fit_motion(samples: &[(f64, f64, Option<f64>)], order: usize) -> Result<MotionFit> {
     if samples.is_empty() {
         return Err(Error::invalid("trajectory window", "no samples"));
@@ -216,6 +229,22 @@ impl MotionFit {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_order_waits_for_its_samples_and_the_full_window_has_it() {
+        // L = 30, n = 2, five samples per order: constant up to 5 samples, linear from 6,
+        // quadratic from 11.
+        let got: Vec<usize> = (1..=12).map(|s| supported_order(2, s, 30, 5)).collect();
+        assert_eq!(got, vec![0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 2, 2]);
+        // A full window of 8 has the full order, however few samples that is per order.
+        assert_eq!(supported_order(2, 8, 8, 5), 2);
+        assert_eq!(supported_order(2, 7, 8, 5), 1);
+        // One sample per order: the highest order the samples determine.
+        assert_eq!(supported_order(2, 2, 30, 1), 1);
+        assert_eq!(supported_order(2, 3, 30, 1), 2);
+        assert_eq!(supported_order(3, 0, 30, 5), 0);
+        assert_eq!(supported_order(2, 40, 30, usize::MAX), 2);
+    }
     use std::f64::consts::PI;
 
     #[test]

@@ -77,6 +77,17 @@ pub struct TrackOptions {
 }
 
 impl TrackOptions {
+    /// The tracker's settings with the predictor's defaults settled by the detection's
+    /// (`MtpConfig::resolved`): its samples are measured on the frames where the alignment or
+    /// the placement runs.
+    pub fn tracker_config(&self) -> TrackerConfig {
+        let measured = self.detect.align == Some(true) || self.detect.place.enabled == Some(true);
+        TrackerConfig {
+            mtp: self.tracker.mtp.resolved(measured),
+            ..self.tracker.clone()
+        }
+    }
+
     /// Checks every option, naming the flag of the first bad one.
     pub fn validate(&self) -> Result<()> {
         if self.horizons.is_empty() || self.horizons.iter().any(|&h| h == 0 || h > 10_000) {
@@ -247,7 +258,7 @@ pub fn track_sequence(
 ) -> Result<TrackRun> {
     opts.validate()?;
     let max_h = *opts.horizons.iter().max().unwrap_or(&1);
-    let mut tracker = Tracker::new(opts.tracker.clone())?;
+    let mut tracker = Tracker::new(opts.tracker_config())?;
     let mut objects: BTreeMap<usize, Vec<FrameRecord>> = BTreeMap::new();
     let mut size: Option<(usize, usize)> = None;
     let mut busy = std::time::Duration::ZERO;
