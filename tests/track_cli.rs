@@ -86,71 +86,30 @@ fn tracks_two_objects_and_rejects_bad_folders() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("0099.flo"));
     assert!(!d.path().join("x").join("tracks.json").exists());
 
-    // Alignment weights: three, finite, non-negative, not all zero; refused before any output.
-    for (weights, says) in [
-        ("1,2", "three weights"),
-        ("1,-1,1", "align_weights"),
-        ("0,0,0", "align_weights"),
+    // Bad settings are refused, naming the setting, before any output: alignment weights
+    // (three, finite, non-negative, not all zero), the fits' samples per order (at least 1),
+    // the split's separation (finite, non-negative).
+    for (flag, value, says) in [
+        ("--align-weights", "1,2", "three weights"),
+        ("--align-weights", "1,-1,1", "align_weights"),
+        ("--align-weights", "0,0,0", "align_weights"),
+        ("--samples-per-order", "0", "samples_per_order"),
+        ("--split-separation", "-0.5", "detect.place.split"),
+        ("--split-separation", "NaN", "detect.place.split"),
     ] {
+        let out = d.path().join("refused");
         let o = Command::new(env!("CARGO_BIN_EXE_pins"))
-            .args([
-                "track",
-                "--flows",
-                flows.to_str().unwrap(),
-                "--out",
-                d.path().join("w").to_str().unwrap(),
-                "--align-weights",
-                weights,
-            ])
+            .args(["track", "--flows", flows.to_str().unwrap(), "--out"])
+            .arg(&out)
+            .arg(format!("{flag}={value}"))
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(
             !o.status.success() && err.contains(says),
-            "{weights}: {err}"
+            "{flag} {value}: {err}"
         );
-        assert!(!d.path().join("w").exists(), "{weights}");
-    }
-
-    // The fits' samples per order: at least 1.
-    let o = Command::new(env!("CARGO_BIN_EXE_pins"))
-        .args([
-            "track",
-            "--flows",
-            flows.to_str().unwrap(),
-            "--out",
-            d.path().join("o").to_str().unwrap(),
-            "--samples-per-order",
-            "0",
-        ])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success() && err.contains("samples_per_order"),
-        "{err}"
-    );
-    assert!(!d.path().join("o").exists());
-
-    // The split's separation: finite and non-negative.
-    for bad in ["-0.5", "NaN"] {
-        let o = Command::new(env!("CARGO_BIN_EXE_pins"))
-            .args([
-                "track",
-                "--flows",
-                flows.to_str().unwrap(),
-                "--out",
-                d.path().join("s").to_str().unwrap(),
-                &format!("--split-separation={bad}"),
-            ])
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(
-            !o.status.success() && err.contains("detect.place.split"),
-            "{bad}: {err}"
-        );
-        assert!(!d.path().join("s").exists(), "{bad}");
+        assert!(!out.exists(), "{flag} {value}");
     }
 }
 
