@@ -78,7 +78,7 @@ struct RunArgs {
     /// A fit of order k waits for min(L, this × k + 1) samples, with a lower order until then,
     /// so a new track's few noisy samples are not extrapolated by a quadratic; 1: the highest
     /// order the samples determine (the paper's). Default: 5 where the samples are measured on
-    /// the frames (--align or --place on, as for MMS), 1 for a given flow's own
+    /// the frames (--align or --place on, as for MMS), 1 for a given flow's own.
     #[arg(long)]
     samples_per_order: Option<usize>,
     /// Kalman measurement noise of a region's centroid (px²); the default suits the flow
@@ -154,7 +154,7 @@ struct RunArgs {
     /// Placement: a region over the predictions of two or more confirmed tracks (their objects
     /// met in the flow) is split between them where the frame's foreground shows an object
     /// near each prediction, at least this share of the sum of their radii apart; 0 turns the
-    /// split off (the tracks on the region coast until it splits in the flow)
+    /// split off (the tracks on the region coast until it splits in the flow).
     #[arg(long, default_value_t = 0.5)]
     split_separation: f64,
     /// Change test: do not trim from each grown region the pixels that the background's
