@@ -88,12 +88,14 @@ fn tracks_two_objects_and_rejects_bad_folders() {
 
     // Bad settings are refused, naming the setting, before any output: alignment weights
     // (three, finite, non-negative, not all zero), the fits' samples per order (at least 1),
-    // the split's separation (finite, non-negative).
+    // the trend's reach and the split's separation (finite, non-negative).
     for (flag, value, says) in [
         ("--align-weights", "1,2", "three weights"),
         ("--align-weights", "1,-1,1", "align_weights"),
         ("--align-weights", "0,0,0", "align_weights"),
         ("--samples-per-order", "0", "samples_per_order"),
+        ("--trend-reach", "-1", "mtp.trend_reach"),
+        ("--trend-reach", "inf", "mtp.trend_reach"),
         ("--split-separation", "-0.5", "detect.place.split"),
         ("--split-separation", "NaN", "detect.place.split"),
     ] {

@@ -81,6 +81,13 @@ struct RunArgs {
     /// the frames (--align or --place on, as for MMS), 1 for a given flow's own.
     #[arg(long)]
     samples_per_order: Option<usize>,
+    /// The fitted trend of speed and direction is followed for this many times the fit
+    /// window's time span past the last sample, then the velocity is held, so a young track's
+    /// few frames are not extrapolated 30 ahead; 0 follows it all the way (the paper's).
+    /// Default: 1 where the samples are measured on the frames (--align or --place on, as for
+    /// MMS), 0 for a given flow's own.
+    #[arg(long)]
+    trend_reach: Option<f64>,
     /// Kalman measurement noise of a region's centroid (px²); the default suits the flow
     /// source (see `pins track --help` of --change-test).
     #[arg(long)]
@@ -323,6 +330,7 @@ fn run(a: RunArgs) -> Result<()> {
             window: a.window,
             order: a.order,
             samples_per_order: a.samples_per_order,
+            trend_reach: a.trend_reach,
             position_r: a.position_r.unwrap_or(MtpConfig::default().position_r),
             motion_r: a.motion_r.unwrap_or(MtpConfig::default().motion_r),
             motion_source: match a.motion_source {

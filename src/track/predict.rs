@@ -125,6 +125,11 @@ pub struct MotionFit {
     pub cos: Poly1,
     /// Time (frame index) of the last sample.
     pub now: f64,
+    /// The window's time span (last sample's time − first's, frames).
+    pub span: f64,
+    /// Beyond this many frames after `now` the velocity is held at its value there, the
+    /// fitted trend no longer followed; `None`: followed all the way (Eq. S22's).
+    pub hold_after: Option<f64>,
 }
 
 /// Fits Eqs. S20–S21 on the window `(t, speed, direction)` with linearly increasing weights.
@@ -196,6 +201,8 @@ pub fn fit_motion(samples: &[(f64, f64, Option<f64>)], order: usize) -> Result<M
         sin,
         cos,
         now: t[n - 1],
+        span: t[n - 1] - t[0],
+        hold_after: None,
     })
 }
 
@@ -208,14 +215,15 @@ impl MotionFit {
     }
 
     /// Eq. S23: positions at 1…`k` frames ahead of `start`, integrating the velocity over five
-    /// sub-steps per frame (midpoint rule).
+    /// sub-steps per frame (midpoint rule); past `hold_after` the velocity stays as it is there.
     pub fn extrapolate(&self, start: (f64, f64), k: usize) -> Vec<(f64, f64)> {
         let dt = 0.2;
         let (mut x, mut y) = start;
         let mut out = Vec::with_capacity(k);
+        let last = self.now + self.hold_after.map_or(f64::INFINITY, |h| h.max(0.0));
         for frame in 0..k {
             for m in 0..5 {
-                let t = self.now + frame as f64 + (m as f64 + 0.5) * dt;
+                let t = (self.now + frame as f64 + (m as f64 + 0.5) * dt).min(last);
                 let (vx, vy) = self.velocity(t);
                 x += vx * dt;
                 y += vy * dt;
@@ -258,6 +266,28 @@ mod tests {
             20.0 + 45.0 * (PI / 6.0).sin(),
         );
         assert!((p[14].0 - expect.0).abs() < 1e-9 && (p[14].1 - expect.1).abs() < 1e-9);
+    }
+
+    #[test]
+    fn past_hold_after_the_velocity_is_held() {
+        // Speed 1 + 0.1 t along +x over t = 0…9: the fit is the ramp itself.
+        let samples: Vec<(f64, f64, Option<f64>)> = (0..10)
+            .map(|n| (n as f64, 1.0 + 0.1 * n as f64, Some(0.0)))
+            .collect();
+        let mut fit = fit_motion(&samples, 1).unwrap();
+        assert!((fit.span - 9.0).abs() < 1e-12);
+        let speed = |t: f64| 1.0 + 0.1 * t;
+        // Followed all the way: ∫ from 9 to 39 of the ramp.
+        let all = fit.extrapolate((0.0, 0.0), 30)[29].0;
+        let integral = |a: f64, b: f64| (b - a) + 0.05 * (b * b - a * a);
+        assert!((all - integral(9.0, 39.0)).abs() < 1e-6, "{all}");
+        // Held after 9 frames: the ramp to t = 18, then its speed there for 21 frames.
+        fit.hold_after = Some(fit.span);
+        let held = fit.extrapolate((0.0, 0.0), 30);
+        assert!((held[29].0 - (integral(9.0, 18.0) + 21.0 * speed(18.0))).abs() < 1e-6);
+        // Up to the hold the two agree.
+        assert!((held[8].0 - fit.extrapolate((0.0, 0.0), 9)[8].0).abs() < 1e-12);
+        assert!(held.iter().all(|p| p.1.abs() < 1e-9));
     }
 
     #[test]
