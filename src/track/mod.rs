@@ -13,6 +13,7 @@ pub mod detect;
 pub mod eval;
 pub mod experiment;
 pub mod forecast_score;
+pub mod foreground;
 pub mod grow;
 pub mod hungarian;
 pub mod kalman;

@@ -1,0 +1,228 @@
+//! Frame n's foreground against the still camera's background (Note S13's region of
+//! interest, measured on the frame): the per-pixel temporal median of the stored frames,
+//! leaving out in each the discs where its objects were (`PlaceConfig::mask`), and the mean
+//! shift that finds an object's centre (Eq. S17's centroid) on the weight above the frame's
+//! noise floor (Comaniciu & Meer 2002).
+
+use std::collections::VecDeque;
+
+use super::still_background::{ColourFrame, PlaceConfig, Placement};
+
+/// Fewest frames a pixel's median leaves it uncovered in before the covered ones are left
+/// out (`PlaceConfig::mask`): the median of fewer is noise.
+pub const MIN_UNCOVERED: usize = 3;
+
+/// The discs (centre, radius) a stored frame's objects covered.
+pub(super) type Covered = Vec<((f64, f64), f64)>;
+
+/// Frame n against the median of the stored frames: `D` = √(box mean of Σ_c (I_c − B_c)²)
+/// (8-bit levels), computed where asked and cached; the weight is max(D − level, 0).
+pub(super) struct Foreground<'a> {
+    frames: &'a VecDeque<ColourFrame>,
+    /// Where each stored frame's objects were (left out of the median).
+    covered: &'a VecDeque<Covered>,
+    current: &'a ColourFrame,
+    /// Σ_c (I_c − B_c)² per pixel, NaN until computed, `[H, W]`.
+    sq: std::cell::RefCell<Vec<f32>>,
+    radius: usize,
+    level: f64,
+}
+
+impl<'a> Foreground<'a> {
+    pub(super) fn new(
+        frames: &'a VecDeque<ColourFrame>,
+        covered: &'a VecDeque<Covered>,
+        current: &'a ColourFrame,
+        window: usize,
+        k: f64,
+    ) -> Self {
+        let (w, h) = (current.width, current.height);
+        let mut fg = Self {
+            frames,
+            covered,
+            current,
+            sq: std::cell::RefCell::new(vec![f32::NAN; w * h]),
+            radius: window / 2,
+            level: 0.0,
+        };
+        // The frame's noise floor from a grid of about 32 × 32 samples.
+        let (sx, sy) = ((w / 32).max(1), (h / 32).max(1));
+        let mut d: Vec<f64> = (0..h)
+            .step_by(sy)
+            .flat_map(|y| (0..w).step_by(sx).map(move |x| (x, y)))
+            .map(|(x, y)| fg.d(x, y))
+            .collect();
+        if !d.is_empty() {
+            let med = median(&mut d);
+            let mut dev: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
+            let mad = median(&mut dev);
+            fg.level = med + k * 1.4826 * mad;
+        }
+        fg
+    }
+
+    /// Σ_c (I_c − median_t B_c)² at one pixel, the median over the stored frames whose
+    /// objects did not cover it (over all of them where fewer than `MIN_UNCOVERED` did not).
+    fn sq_at(&self, p: usize) -> f32 {
+        let cached = self.sq.borrow()[p];
+        if !cached.is_nan() {
+            return cached;
+        }
+        let w = self.current.width;
+        let (x, y) = ((p % w) as f64, (p / w) as f64);
+        let free = |i: usize| {
+            self.covered.get(i).is_none_or(|discs| {
+                discs
+                    .iter()
+                    .all(|&((cx, cy), r)| (x - cx).hypot(y - cy) > r)
+            })
+        };
+        let mut use_frame = [true; 255];
+        let n_all = self.frames.len().min(255);
+        let n_free = (0..n_all).filter(|&i| free(i)).count();
+        if n_free >= MIN_UNCOVERED {
+            for (i, u) in use_frame.iter_mut().enumerate().take(n_all) {
+                *u = free(i);
+            }
+        }
+        let mut s = 0.0f32;
+        let mut buf = [0u8; 255];
+        for c in 0..self.current.channels {
+            let mut n = 0;
+            for (i, f) in self.frames.iter().enumerate().take(n_all) {
+                if use_frame[i] {
+                    buf[n] = f.plane(c)[p];
+                    n += 1;
+                }
+            }
+            let vals = &mut buf[..n];
+            vals.sort_unstable();
+            let b = if n % 2 == 1 {
+                vals[n / 2] as f32
+            } else {
+                (vals[n / 2 - 1] as f32 + vals[n / 2] as f32) / 2.0
+            };
+            let e = self.current.plane(c)[p] as f32 - b;
+            s += e * e;
+        }
+        self.sq.borrow_mut()[p] = s;
+        s
+    }
+
+    /// The mean shift's weight at (x, y): max(D − level, 0).
+    pub(super) fn weight(&self, x: usize, y: usize) -> f64 {
+        (self.d(x, y) - self.level).max(0.0)
+    }
+
+    /// The box-averaged difference at (x, y) (the box clipped to the frame).
+    fn d(&self, x: usize, y: usize) -> f64 {
+        let (w, h, r) = (self.current.width, self.current.height, self.radius);
+        let (mut s, mut n) = (0.0f64, 0usize);
+        for yy in y.saturating_sub(r)..=(y + r).min(h - 1) {
+            for xx in x.saturating_sub(r)..=(x + r).min(w - 1) {
+                s += self.sq_at(yy * w + xx) as f64;
+                n += 1;
+            }
+        }
+        (s / n.max(1) as f64).sqrt()
+    }
+
+    /// The foreground's centre near each seed (its prediction, its radius), when every seed
+    /// is placed and the centres lie at least `split` × the sum of their radii apart.
+    pub(super) fn split(
+        &self,
+        seeds: &[((f64, f64), f64)],
+        cfg: &PlaceConfig,
+    ) -> Option<Vec<(f64, f64)>> {
+        let mut to = Vec::with_capacity(seeds.len());
+        for &(at, radius) in seeds {
+            let area = (std::f64::consts::PI * radius * radius).round() as usize;
+            match self.place(at, area.max(1), cfg) {
+                Placement::Moved { to: p } => to.push(p),
+                _ => return None,
+            }
+        }
+        for (i, (p, (_, ri))) in to.iter().zip(seeds).enumerate() {
+            for (q, (_, rj)) in to.iter().zip(seeds).skip(i + 1) {
+                if (p.0 - q.0).hypot(p.1 - q.1) < cfg.split * (ri + rj) {
+                    return None;
+                }
+            }
+        }
+        Some(to)
+    }
+
+    /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`:
+    /// the new centre (`Moved`), a centre too far from `start` (`Far`), or why there is none
+    /// (`Kept`).
+    pub(super) fn place(&self, start: (f64, f64), area: usize, cfg: &PlaceConfig) -> Placement {
+        let (w, h) = (self.current.width, self.current.height);
+        let radius = (area as f64 / std::f64::consts::PI).sqrt().max(2.0);
+        let mut p = start;
+        let mut cover = 0usize;
+        for _ in 0..cfg.iterations {
+            let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
+            cover = 0;
+            for (x, y) in disc(p, radius, w, h) {
+                let wt = self.weight(x, y);
+                if wt > 0.0 {
+                    sw += wt;
+                    sx += wt * x as f64;
+                    sy += wt * y as f64;
+                    cover += 1;
+                }
+            }
+            if sw <= 0.0 {
+                return Placement::Kept("no foreground near the region".into());
+            }
+            let next = (sx / sw, sy / sw);
+            let step = (next.0 - p.0).hypot(next.1 - p.1);
+            p = next;
+            if step < 0.05 {
+                break;
+            }
+        }
+        if (cover as f64) < cfg.min_cover * area as f64 {
+            return Placement::Kept(format!(
+                "{cover} foreground pixels for a region of {area} (the object joined the background?)"
+            ));
+        }
+        let shift = (p.0 - start.0).hypot(p.1 - start.1);
+        let limit = cfg.max_shift * radius;
+        if shift > limit {
+            return Placement::Far {
+                to: p,
+                shift,
+                limit,
+            };
+        }
+        Placement::Moved { to: p }
+    }
+}
+
+/// The pixels (x, y) of a `w` × `h` frame within `radius` of `centre`; none for a
+/// non-finite centre or radius.
+pub(crate) fn disc(
+    centre: (f64, f64),
+    radius: f64,
+    w: usize,
+    h: usize,
+) -> impl Iterator<Item = (usize, usize)> {
+    let ok = centre.0.is_finite() && centre.1.is_finite() && radius.is_finite() && w * h > 0;
+    let span = |c: f64, n: usize| {
+        let (lo, hi) = ((c - radius).ceil().max(0.0), (c + radius).floor());
+        if ok && lo <= hi && lo <= (n - 1) as f64 {
+            lo as usize..(hi.min((n - 1) as f64) as usize + 1)
+        } else {
+            0..0
+        }
+    };
+    let (xs, ys) = (span(centre.0, w), span(centre.1, h));
+    ys.flat_map(move |y| xs.clone().map(move |x| (x, y)))
+        .filter(move |&(x, y)| (x as f64 - centre.0).hypot(y as f64 - centre.1) <= radius)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+}
