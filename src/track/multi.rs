@@ -373,7 +373,7 @@ impl Tracker {
                     },
                 });
             }
-            t.predicted = e.path[0];
+            t.predicted = e.next;
             t.centre = e.centroid;
             let outside = self.frame_size.is_some_and(|(w, h)| {
                 let (x, y) = e.centroid;
@@ -477,7 +477,7 @@ impl Tracker {
                 hits: 1,
                 misses: 0,
                 confirmed: false,
-                predicted: e.path[0],
+                predicted: e.next,
                 centre: e.centroid,
                 areas: VecDeque::from([d.pixels]),
                 appearance: d.colour.map(Appearance::new),
