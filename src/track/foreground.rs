@@ -77,13 +77,13 @@ impl<'a> Foreground<'a> {
                     .all(|&((cx, cy), r)| (x - cx).hypot(y - cy) > r)
             })
         };
-        let mut use_frame = [true; 255];
         let n_all = self.frames.len().min(255);
-        let n_free = (0..n_all).filter(|&i| free(i)).count();
-        if n_free >= MIN_UNCOVERED {
-            for (i, u) in use_frame.iter_mut().enumerate().take(n_all) {
-                *u = free(i);
-            }
+        let mut use_frame = [true; 255];
+        for (i, u) in use_frame.iter_mut().enumerate().take(n_all) {
+            *u = free(i);
+        }
+        if use_frame[..n_all].iter().filter(|&&u| u).count() < MIN_UNCOVERED {
+            use_frame = [true; 255];
         }
         let mut s = 0.0f32;
         let mut buf = [0u8; 255];

@@ -342,7 +342,7 @@ fn covered(
     placed: &[Placement],
     mask: f64,
 ) -> Covered {
-    let radius = |a: usize| (a as f64 / std::f64::consts::PI).sqrt();
+    let radius = equivalent_radius;
     let mut out = Vec::with_capacity(regions.len());
     for (i, &(c, area)) in regions.iter().enumerate() {
         match placed.get(i) {
@@ -357,10 +357,15 @@ fn covered(
     out
 }
 
+/// The radius of a disc of `area` pixels.
+fn equivalent_radius(area: usize) -> f64 {
+    (area as f64 / std::f64::consts::PI).sqrt()
+}
+
 /// The distance to another region, when one of at least a quarter of region `i`'s area lies
 /// within `factor` × the sum of their equivalent radii (`PlaceConfig::crowd`).
 fn crowded(regions: &[((f64, f64), usize)], i: usize, factor: f64) -> Option<f64> {
-    let radius = |a: usize| (a as f64 / std::f64::consts::PI).sqrt();
+    let radius = equivalent_radius;
     let ((x, y), a) = regions[i];
     regions
         .iter()
