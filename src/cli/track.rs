@@ -66,9 +66,11 @@ struct RunArgs {
     #[arg(long, required = true)]
     out: Option<PathBuf>,
     /// Predictor: the polynomial fit of Note S13, the constant-velocity baseline, or, per
-    /// horizon, whichever of the two forecast this track better over its recent past.
-    #[arg(long, value_enum, default_value = "poly")]
-    method: Method,
+    /// horizon, whichever of the two forecast this track clearly better over its recent past.
+    /// Default: select where the samples are measured on the frames (MMS from --frames, or
+    /// --align / --place on), poly (the paper's) otherwise.
+    #[arg(long, value_enum)]
+    method: Option<Method>,
     /// Fitting window L in frames.
     #[arg(long, default_value_t = 30)]
     window: usize,
@@ -322,11 +324,11 @@ fn run(a: RunArgs) -> Result<()> {
     };
     let tracker = TrackerConfig {
         mtp: MtpConfig {
-            method: match a.method {
+            method: a.method.map(|m| match m {
                 Method::Poly => mtp::Method::Poly,
                 Method::ConstantVelocity => mtp::Method::ConstantVelocity,
                 Method::Select => mtp::Method::Select,
-            },
+            }),
             window: a.window,
             order: a.order,
             samples_per_order: a.samples_per_order,

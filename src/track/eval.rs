@@ -162,7 +162,18 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
                 .collect()
         })
         .collect();
-    let matched = assign(&cost);
+    // IDF1's matching maximises the hits: a pair without hits is worth as little as no pair
+    // (cost 0, dropped after), so a long track is not moved off its object to let a short
+    // one be matched too (a forbidden pair would make the assignment maximise the pairs).
+    let neutral: Vec<Vec<f64>> = cost
+        .iter()
+        .map(|row| row.iter().map(|&c| if c.is_finite() { c } else { 0.0 }).collect())
+        .collect();
+    let matched: Vec<Option<usize>> = assign(&neutral)
+        .into_iter()
+        .zip(&cost)
+        .map(|(m, row)| m.filter(|&i| row[i].is_finite()))
+        .collect();
     let mut overall: BTreeMap<usize, Acc> = hs.iter().map(|&h| (h, Acc::default())).collect();
     let mut objects = Vec::new();
     for ((t, m), row) in tracks.objects.iter().zip(&matched).zip(&cost) {
@@ -478,6 +489,35 @@ mod tests {
         );
         assert!((c.recall - 7.0 / 38.0).abs() < 1e-12);
         assert!((c.idf1 - 14.0 / (38.0 + 11.0)).abs() < 1e-12, "{}", c.idf1);
+    }
+
+    /// Track A follows object 0 for 16 frames, then object 1 for 4; track B follows object
+    /// 0 in those last 4. The most hits (16) match A to object 0 and leave B a second track
+    /// on it; matching both tracks (A to object 1, B to object 0: 8 hits) would score A's
+    /// whole life against the object it followed least.
+    #[test]
+    fn the_matching_maximises_hits_not_pairs() {
+        let mut a = track(1, 20.0, 0.0);
+        for f in &mut a.frames[16..] {
+            f.centroid[1] = 60.0;
+        }
+        let mut b = track(2, 20.0, 0.0);
+        b.frames.drain(..16);
+        let r = evaluate(
+            &Tracks {
+                objects: vec![a, b],
+                ms_per_frame: None,
+                background_flow: None,
+            },
+            &truth(),
+        )
+        .unwrap();
+        assert_eq!(r.objects[0].truth_index, Some(0));
+        assert_eq!(r.objects[1].truth_index, None);
+        assert_eq!(r.objects[1].second_on, Some(0));
+        // IDF1: 2 · 16 hits over the objects' 40 frames and the tracks' 24.
+        let idf1 = r.coverage.map_or(f64::NAN, |c| c.idf1);
+        assert!((idf1 - 32.0 / 64.0).abs() < 1e-12, "{idf1}");
     }
 
     #[test]
