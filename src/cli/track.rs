@@ -174,6 +174,11 @@ struct RunArgs {
     /// this fraction of the residual with the background's motion.
     #[arg(long, default_value_t = 0.8)]
     max_residual_ratio: f64,
+    /// With the alignment on: do not retry a region that fails the photometric test with the
+    /// motion the frames confirm (such a region, accepted, continues a confirmed track but
+    /// starts none).
+    #[arg(long)]
+    no_retry_aligned: bool,
     /// Confirmation window: consecutive detections, moving as their flow says (or, with
     /// `--align on`, as the motion the frames confirm says), before a track is reported.
     #[arg(long, default_value_t = 5)]
@@ -387,6 +392,7 @@ fn run(a: RunArgs) -> Result<()> {
         },
         change_k: a.change_k,
         trim: !a.no_trim,
+        retry_aligned: !a.no_retry_aligned,
         align: match a.align {
             AutoSwitch::Auto => None,
             AutoSwitch::On => Some(true),

@@ -1,8 +1,10 @@
 //! Association of one frame's detections with the tracks (Note S13's many objects, Movie S2):
 //! gated optimal assignment on the distance to each track's prediction (with its velocity and
-//! appearance gates and the appearance cost), a second chance by distance alone for confirmed
-//! tracks left without a detection (ByteTrack's second association), and the merges, regions
-//! that hide a second confirmed track's object.
+//! appearance gates and the appearance cost) over the detections that passed the photometric
+//! test with their flow, then the weak ones (`track::retry`) for the confirmed tracks left
+//! (ByteTrack's low-score detections), a second chance by distance alone for confirmed tracks
+//! still without a detection (ByteTrack's second association), and the merges, regions that
+//! hide a second confirmed track's object.
 
 use super::appearance::Appearance;
 use super::hungarian::assign;
@@ -60,11 +62,41 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
                 .collect()
         })
         .collect();
+    // The weak detections wait for the confirmed tracks the others leave.
+    let strong: Vec<Vec<f64>> = cost
+        .iter()
+        .map(|row| {
+            row.iter()
+                .zip(detections)
+                .map(|(&c, d)| if d.weak { f64::INFINITY } else { c })
+                .collect()
+        })
+        .collect();
     let mut matches = if config.match_cascade {
-        cascade(tracks, &cost)
+        cascade(tracks, &strong)
     } else {
-        assign(&cost)
+        assign(&strong)
     };
+    if detections.iter().any(|d| d.weak) {
+        let rows: Vec<usize> = (0..tracks.len())
+            .filter(|&i| matches[i].is_none() && tracks[i].confirmed)
+            .collect();
+        let weak: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|&i| {
+                cost[i]
+                    .iter()
+                    .zip(detections)
+                    .map(|(&c, d)| if d.weak { c } else { f64::INFINITY })
+                    .collect()
+            })
+            .collect();
+        for (&i, m) in rows.iter().zip(assign(&weak)) {
+            if m.is_some() {
+                matches[i] = m;
+            }
+        }
+    }
     // A second chance (as ByteTrack's second association): a confirmed track left without
     // a detection takes an unmatched one within the birth-exclusion radius of its
     // prediction, by distance alone. One bad match can throw a track's velocity off, and
@@ -163,6 +195,7 @@ mod tests {
     fn det(x: f64, y: f64, flow: (f64, f64), pixels: usize) -> Region {
         Region {
             colour: None,
+            weak: false,
             pixels,
             centroid: (x, y),
             speed: flow.0.hypot(flow.1),
@@ -183,6 +216,36 @@ mod tests {
             confirmed,
             appearance: None,
         }
+    }
+
+    /// A weak detection (`track::retry`) goes to a confirmed track the others left, never to
+    /// a tentative one, and a confirmed track takes a detection that passed with its flow
+    /// before a weak one.
+    #[test]
+    fn a_weak_detection_continues_a_confirmed_track_only() {
+        let config = TrackerConfig::default();
+        let weak = |x: f64| Region {
+            weak: true,
+            ..det(x, 10.0, (2.0, 0.0), 100)
+        };
+        let tracks = [
+            track((10.0, 10.0), (2.0, 0.0), true),
+            track((50.0, 10.0), (2.0, 0.0), false),
+        ];
+        let a = associate(&tracks, &[weak(12.0), weak(52.0)], &config);
+        assert_eq!(a.matches, vec![Some(0), None]);
+        // Nearer the confirmed track than the other detection, the weak one waits.
+        let both = [weak(10.5), det(14.0, 10.0, (2.0, 0.0), 100)];
+        assert_eq!(
+            associate(&tracks[..1], &both, &config).matches,
+            vec![Some(1)]
+        );
+        // The same detections, neither weak: the nearest.
+        let plain = [det(10.5, 10.0, (2.0, 0.0), 100), both[1].clone()];
+        assert_eq!(
+            associate(&tracks[..1], &plain, &config).matches,
+            vec![Some(0)]
+        );
     }
 
     #[test]

@@ -15,6 +15,7 @@ use super::change::change_mask;
 use super::grow::{grow, seed_motion};
 use super::noise_floor::noise_floor;
 use super::photometric::GreyPair;
+use super::retry::{aligned_retry, crowded_retries, weak};
 use super::roi::{Region, components, regions_of};
 use super::split::{self, Seed};
 use super::still_background::{ColourFrame, PlaceConfig, Placement, StillBackground};
@@ -77,6 +78,10 @@ pub struct DetectConfig {
     /// green first, as the metalens PSF is sharp in green and broad in red and blue; `[1, 1, 1]`
     /// for a camera whose channels are equally sharp). Grey frames ignore them.
     pub align_weights: [f64; 3],
+    /// With the alignment on: a region that fails the photometric test with its flow is
+    /// retried with its aligned motion and, where that passes, accepted as a weak detection
+    /// that continues a confirmed track but starts none (`track::retry`).
+    pub retry_aligned: bool,
     /// With frames and a still camera: each accepted region's centroid moves to its object in
     /// the frame (where it differs from the temporal median of the last frames;
     /// `track::still_background`).
@@ -101,6 +106,7 @@ impl Default for DetectConfig {
             align: None,
             align_reach: 24,
             align_weights: ALIGN_WEIGHTS,
+            retry_aligned: true,
             place: PlaceConfig::default(),
         }
     }
@@ -382,21 +388,41 @@ pub fn detect(
                 ),
                 (Some(_), Some((rf, rn))) => {
                     let r = rf / rn;
-                    if r <= cfg.max_residual_ratio {
+                    let max = cfg.max_residual_ratio;
+                    let retried = aligner
+                        .filter(|_| r > max && cfg.retry_aligned)
+                        .and_then(|p| {
+                            aligned_retry(
+                                p,
+                                &pixels,
+                                &region,
+                                rn,
+                                max,
+                                cfg.align_reach,
+                                cfg.align_weights,
+                            )
+                        });
+                    if let Some((motion, ra)) = retried {
+                        region = weak(&region, motion);
                         (
                             true,
-                            format!("photometric: ratio {r:.2} <= {:.2}", cfg.max_residual_ratio),
+                            format!(
+                                "photometric with the aligned motion: ratio {ra:.2} <= {max:.2} \
+                                 (with the flow {r:.2}); weak"
+                            ),
                         )
+                    } else if r <= max {
+                        (true, format!("photometric: ratio {r:.2} <= {max:.2}"))
                     } else {
-                        (
-                            false,
-                            format!("photometric: ratio {r:.2} > {:.2}", cfg.max_residual_ratio),
-                        )
+                        (false, format!("photometric: ratio {r:.2} > {max:.2}"))
                     }
                 }
             };
             // The accepted region's motion, as the frames confirm it.
-            if accepted && let Some(p) = aligner {
+            if accepted
+                && !region.weak
+                && let Some(p) = aligner
+            {
                 region.aligned = align(
                     p.first_colour(),
                     p.second_colour(),
@@ -416,7 +442,26 @@ pub fn detect(
                 placement: None,
             }
         })
+        .collect::<Vec<Candidate>>();
+    // A retried region beside another may be two objects' mixture: it is not accepted.
+    let mut candidates = candidates;
+    let places: Vec<_> = candidates
+        .iter()
+        .map(|c| (c.region.centroid, c.region.pixels))
         .collect();
+    let retried: Vec<bool> = candidates
+        .iter()
+        .map(|c| c.accepted && c.region.weak)
+        .collect();
+    for (c, crowded) in candidates
+        .iter_mut()
+        .zip(crowded_retries(&places, &retried))
+    {
+        if crowded {
+            c.accepted = false;
+            c.reason = format!("{}, but beside another region", c.reason);
+        }
+    }
     Ok(FrameDetection {
         background,
         rejected_background,
@@ -653,6 +698,7 @@ mod tests {
         }
         let region = |c: (f64, f64), pixels| Region {
             colour: None,
+            weak: false,
             pixels,
             centroid: c,
             speed: 0.2,

@@ -167,7 +167,11 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
     // one be matched too (a forbidden pair would make the assignment maximise the pairs).
     let neutral: Vec<Vec<f64>> = cost
         .iter()
-        .map(|row| row.iter().map(|&c| if c.is_finite() { c } else { 0.0 }).collect())
+        .map(|row| {
+            row.iter()
+                .map(|&c| if c.is_finite() { c } else { 0.0 })
+                .collect()
+        })
         .collect();
     let matched: Vec<Option<usize>> = assign(&neutral)
         .into_iter()

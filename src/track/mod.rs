@@ -24,6 +24,7 @@ pub mod photometric;
 pub mod points;
 pub mod predict;
 pub mod reid;
+pub mod retry;
 pub mod roi;
 pub mod run;
 pub mod split;

@@ -360,6 +360,7 @@ mod tests {
     fn region(x: f64, y: f64, speed: f64, dir: Option<f64>) -> Region {
         Region {
             colour: None,
+            weak: false,
             pixels: 50,
             centroid: (x, y),
             speed,

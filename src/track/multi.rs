@@ -450,7 +450,8 @@ impl Tracker {
         self.tracks
             .retain(|t| t.misses <= patience && (t.confirmed || t.misses == 0));
         for (j, d) in detections.iter().enumerate() {
-            if used[j] {
+            // A weak detection (`track::retry`) continues a confirmed track, never starts one.
+            if used[j] || d.weak {
                 continue;
             }
             if let Some(t) = self.tracks.iter().find(|t| {

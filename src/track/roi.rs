@@ -39,6 +39,10 @@ pub struct Region {
     /// times) over a disc at its centre, when the frames were given (`FrameDetection::colour`):
     /// the tracker's appearance cue.
     pub colour: Option<[f64; 3]>,
+    /// Accepted by the photometric test only with the motion the frames confirm, where the
+    /// flow's own warp explained too little (`DetectConfig::retry_aligned`): as ByteTrack's
+    /// low-score detections, it continues a confirmed track but starts none.
+    pub weak: bool,
 }
 
 /// All regions with at least `min_area` pixels whose |flow| > `threshold`, largest first.
@@ -182,6 +186,7 @@ impl Region {
         let resultant = (cx * cx + cy * cy).sqrt() / nf;
         Region {
             colour: None,
+            weak: false,
             pixels: pixels.len(),
             centroid: (sx / nf, sy / nf),
             speed: ss / nf,

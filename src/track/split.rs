@@ -66,6 +66,7 @@ mod tests {
             placed: None,
             foreground: Some((1.0, 1.0)),
             aligned: Some((2.0, 0.0)),
+            weak: false,
         }
     }
 

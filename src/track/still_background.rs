@@ -364,7 +364,7 @@ fn equivalent_radius(area: usize) -> f64 {
 
 /// The distance to another region, when one of at least a quarter of region `i`'s area lies
 /// within `factor` × the sum of their equivalent radii (`PlaceConfig::crowd`).
-fn crowded(regions: &[((f64, f64), usize)], i: usize, factor: f64) -> Option<f64> {
+pub(crate) fn crowded(regions: &[((f64, f64), usize)], i: usize, factor: f64) -> Option<f64> {
     let radius = equivalent_radius;
     let ((x, y), a) = regions[i];
     regions

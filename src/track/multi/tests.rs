@@ -6,6 +6,7 @@ use super::*;
 fn det(x: f64, y: f64, vx: f64, vy: f64) -> Region {
     Region {
         colour: None,
+        weak: false,
         pixels: 40,
         centroid: (x, y),
         speed: vx.hypot(vy),
@@ -492,4 +493,32 @@ fn a_foreground_centre_the_prediction_confirms_places_the_region() {
     assert_eq!(at(&d, (5.0, 50.0)), None, "12 px: beyond 0.5 × 16 px");
     d.placed = Some((20.0, 50.0));
     assert_eq!(at(&d, (16.0, 50.0)), None, "already placed");
+}
+
+/// Weak detections (`track::retry`) alone start no track; after a track is confirmed on
+/// detections that passed with their flow, weak ones carry it on under its ID.
+#[test]
+fn weak_detections_continue_a_track_but_start_none() {
+    let at = |n: usize| det(20.0 + 3.0 * n as f64, 50.0, 3.0, 0.0);
+    let weak = |n: usize| Region {
+        weak: true,
+        ..at(n)
+    };
+    let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
+    for n in 0..20 {
+        assert!(tr.step(n, &[weak(n)], 1).unwrap().is_empty(), "frame {n}");
+    }
+    let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
+    let mut ids = Vec::new();
+    for n in 0..30 {
+        let d = if n < 10 { at(n) } else { weak(n) };
+        for t in tr.step(n, &[d], 1).unwrap() {
+            assert!(t.observed, "frame {n}: the weak detection is the track's");
+            ids.push((n, t.id));
+        }
+    }
+    let first = ids.first().map(|i| i.0);
+    assert!(first.is_some_and(|f| f < 10), "{ids:?}");
+    assert!(ids.iter().all(|i| i.1 == ids[0].1), "{ids:?}");
+    assert_eq!(ids.last().map(|i| i.0), Some(29), "{ids:?}");
 }
