@@ -368,7 +368,7 @@ pub fn detect(
         }
     };
     let aligner = frames.filter(|_| cfg.align == Some(true));
-    let candidates = found
+    let mut candidates: Vec<Candidate> = found
         .into_iter()
         .map(|(mut region, pixels)| {
             let photometric = frames.filter(|_| cfg.photometric);
@@ -442,9 +442,8 @@ pub fn detect(
                 placement: None,
             }
         })
-        .collect::<Vec<Candidate>>();
+        .collect();
     // A retried region beside another may be two objects' mixture: it is not accepted.
-    let mut candidates = candidates;
     let places: Vec<_> = candidates
         .iter()
         .map(|c| (c.region.centroid, c.region.pixels))
