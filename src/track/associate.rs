@@ -63,15 +63,8 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
         })
         .collect();
     // The weak detections wait for the confirmed tracks the others leave.
-    let strong: Vec<Vec<f64>> = cost
-        .iter()
-        .map(|row| {
-            row.iter()
-                .zip(detections)
-                .map(|(&c, d)| if d.weak { f64::INFINITY } else { c })
-                .collect()
-        })
-        .collect();
+    let all: Vec<usize> = (0..tracks.len()).collect();
+    let strong = only(&cost, &all, |j| !detections[j].weak);
     let mut matches = if config.match_cascade {
         cascade(tracks, &strong)
     } else {
@@ -81,16 +74,7 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
         let rows: Vec<usize> = (0..tracks.len())
             .filter(|&i| matches[i].is_none() && tracks[i].confirmed)
             .collect();
-        let weak: Vec<Vec<f64>> = rows
-            .iter()
-            .map(|&i| {
-                cost[i]
-                    .iter()
-                    .zip(detections)
-                    .map(|(&c, d)| if d.weak { c } else { f64::INFINITY })
-                    .collect()
-            })
-            .collect();
+        let weak = only(&cost, &rows, |j| detections[j].weak);
         for (&i, m) in rows.iter().zip(assign(&weak)) {
             if m.is_some() {
                 matches[i] = m;
@@ -162,16 +146,7 @@ fn cascade(tracks: &[Tracked], cost: &[Vec<f64>]) -> Vec<Option<usize>> {
         let rows: Vec<usize> = (0..tracks.len())
             .filter(|&i| tracks[i].confirmed == confirmed)
             .collect();
-        let sub: Vec<Vec<f64>> = rows
-            .iter()
-            .map(|&i| {
-                cost[i]
-                    .iter()
-                    .zip(&taken)
-                    .map(|(&c, &t)| if t { f64::INFINITY } else { c })
-                    .collect()
-            })
-            .collect();
+        let sub = only(cost, &rows, |j| !taken[j]);
         for (&i, m) in rows.iter().zip(assign(&sub)) {
             if let Some(j) = m {
                 taken[j] = true;
@@ -180,6 +155,19 @@ fn cascade(tracks: &[Tracked], cost: &[Vec<f64>]) -> Vec<Option<usize>> {
         }
     }
     matches
+}
+
+/// The rows `rows` of `cost` with every column `keep` refuses forbidden.
+fn only(cost: &[Vec<f64>], rows: &[usize], keep: impl Fn(usize) -> bool) -> Vec<Vec<f64>> {
+    rows.iter()
+        .map(|&i| {
+            cost[i]
+                .iter()
+                .enumerate()
+                .map(|(j, &c)| if keep(j) { c } else { f64::INFINITY })
+                .collect()
+        })
+        .collect()
 }
 
 /// True when `point` lies within the equivalent radius √(area/π) of region `d`.
