@@ -50,7 +50,7 @@ struct RunArgs {
     iters: Option<usize>,
     /// What follows MMS: none, variational (the coarse-to-fine variational refinement) or a
     /// .json file of its settings. None by default here: on the tracking clips the refinement
-    /// pulls a small, dark mover's flow towards its background (README, tracking).
+    /// pulls a small, dark mover's flow towards its background (docs/tracking.md).
     #[arg(long, default_value = "none")]
     refine: String,
     /// Where MMS starts: zero (the default here, as the tracking clips were measured) or

@@ -107,12 +107,12 @@ impl Default for MtpConfig {
 
 /// Samples per order of the fits whose samples are measured on the frames (`MtpConfig::
 /// samples_per_order`): over the 40 tracking clips on MMS flow, 5 took the forecasts 15 and 30
-/// frames ahead closer on 27 and 34 clips and further on 4 and 4 (README, tracking).
+/// frames ahead closer on 27 and 34 clips and further on 4 and 4 (docs/tracking.md).
 pub const SAMPLES_PER_ORDER_MEASURED: usize = 5;
 
 /// The trend's reach where the samples are measured on the frames (`MtpConfig::trend_reach`):
 /// over the 44 tracking clips on MMS flow, 1 took the forecasts 30 frames ahead closer on 27
-/// clips and further on 5, all spirals (README, tracking).
+/// clips and further on 5, all spirals (docs/tracking.md).
 pub const TREND_REACH_MEASURED: f64 = 1.0;
 
 impl MtpConfig {
