@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
 use crate::error::{Error, Result};
@@ -11,6 +12,13 @@ use crate::error::{Error, Result};
 pub fn read_json<T: DeserializeOwned>(path: &Path) -> Result<T> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     serde_json::from_str(&text).map_err(|e| in_config(path, e))
+}
+
+/// A number that may be NaN in a report (an error over no predictions): JSON has no NaN and
+/// serde_json writes it as `null`, which this reads back as NaN, so a report round-trips
+/// (`#[serde(deserialize_with = "nan_if_null")]`).
+pub fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 /// An error found in the config file at `path` (a parse error, or a value out of range).

@@ -30,9 +30,11 @@ pub struct Coverage {
     pub partially_tracked: usize,
     pub mostly_lost: usize,
     /// Tracked object frames over object frames in view.
+    #[serde(deserialize_with = "crate::io::json::nan_if_null")]
     pub recall: f64,
     /// 2 IDTP / (object frames in view + observed track frames), IDTP being the frames on
     /// which a track lies on the object the global matching gave it.
+    #[serde(deserialize_with = "crate::io::json::nan_if_null")]
     pub idf1: f64,
 }
 

@@ -17,6 +17,7 @@ use super::hungarian::assign;
 use super::run::Tracks;
 use super::static_flow::BackgroundFlow;
 use crate::error::{Error, Result};
+use crate::io::json::nan_if_null;
 use crate::scene::truth::Truth;
 
 /// Errors at one horizon.
@@ -25,8 +26,12 @@ pub struct HorizonError {
     pub horizon: usize,
     /// Predictions scored.
     pub count: usize,
+    /// NaN (`null` in JSON) over no predictions.
+    #[serde(deserialize_with = "nan_if_null")]
     pub rmse_x: f64,
+    #[serde(deserialize_with = "nan_if_null")]
     pub rmse_y: f64,
+    #[serde(deserialize_with = "nan_if_null")]
     pub rmse_2d: f64,
 }
 
@@ -42,7 +47,9 @@ pub struct ObjectReport {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub second_on: Option<usize>,
     pub frames: usize,
-    /// Mean distance between the tracked and the true centre (px).
+    /// Mean distance between the tracked and the true centre (px; NaN, `null` in JSON, where
+    /// the track never lies on a wholly visible object).
+    #[serde(deserialize_with = "nan_if_null")]
     pub centre_error: f64,
     pub horizons: Vec<HorizonError>,
 }
@@ -135,33 +142,51 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
         let o = &truth.objects[i];
         (n < truth.frames && o.visible[n]).then(|| o.centroids[n])
     };
+    // Where an object is in the frame at all (partly, as it enters or leaves the view).
+    let (w, h) = (truth.width as f64, truth.height as f64);
+    let present = |i: usize, n: usize| -> Option<[f64; 2]> {
+        let o = &truth.objects[i];
+        let c = *o.centroids.get(n)?;
+        let r = o.radius;
+        (c[0] + r >= 0.0 && c[1] + r >= 0.0 && c[0] - r <= w && c[1] - r <= h).then_some(c)
+    };
     let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    // Per track and object, minus the observed frames with the track's centre within the
+    // object's radius of the object's (infinite for none), counting the frames where the
+    // object is at `at`.
+    let hits = |at: &dyn Fn(usize, usize) -> Option<[f64; 2]>| -> Vec<Vec<f64>> {
+        tracks
+            .objects
+            .iter()
+            .map(|t| {
+                (0..truth.objects.len())
+                    .map(|i| {
+                        let reach = truth.objects[i].radius.max(5.0);
+                        let hits = t
+                            .frames
+                            .iter()
+                            .filter(|f| f.observed)
+                            .filter(|f| {
+                                at(i, f.frame).is_some_and(|c| dist(f.centroid, c) <= reach)
+                            })
+                            .count();
+                        if hits > 0 {
+                            -(hits as f64)
+                        } else {
+                            f64::INFINITY
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    };
     // Tracks are matched to objects globally, as IDF1 does: each track to the object it
-    // covers in the most frames (its observed centre within the object's radius).
-    let cost: Vec<Vec<f64>> = tracks
-        .objects
-        .iter()
-        .map(|t| {
-            (0..truth.objects.len())
-                .map(|i| {
-                    let reach = truth.objects[i].radius.max(5.0);
-                    let hits = t
-                        .frames
-                        .iter()
-                        .filter(|f| f.observed)
-                        .filter(|f| {
-                            centre(i, f.frame).is_some_and(|c| dist(f.centroid, c) <= reach)
-                        })
-                        .count();
-                    if hits > 0 {
-                        -(hits as f64)
-                    } else {
-                        f64::INFINITY
-                    }
-                })
-                .collect()
-        })
-        .collect();
+    // covers in the most frames wholly in view.
+    let cost = hits(&centre);
+    // A track left without an object lies on one if it does in half its frames, counting
+    // those where the object is partly in view: a track on an object leaving the frame
+    // follows it, though its errors are scored only where the object is wholly in view.
+    let on = hits(&present);
     // IDF1's matching maximises the hits: a pair without hits is worth as little as no pair
     // (cost 0, dropped after), so a long track is not moved off its object to let a short
     // one be matched too (a forbidden pair would make the assignment maximise the pairs).
@@ -180,7 +205,7 @@ pub fn evaluate(tracks: &Tracks, truth: &Truth) -> Result<TrackReport> {
         .collect();
     let mut overall: BTreeMap<usize, Acc> = hs.iter().map(|&h| (h, Acc::default())).collect();
     let mut objects = Vec::new();
-    for ((t, m), row) in tracks.objects.iter().zip(&matched).zip(&cost) {
+    for ((t, m), row) in tracks.objects.iter().zip(&matched).zip(&on) {
         // A track left without an object: on the object it covers most, if that is at
         // least half of its observed frames.
         let observed = t.frames.iter().filter(|f| f.observed).count();
@@ -522,6 +547,70 @@ mod tests {
         // IDF1: 2 · 16 hits over the objects' 40 frames and the tracks' 24.
         let idf1 = r.coverage.map_or(f64::NAN, |c| c.idf1);
         assert!((idf1 - 32.0 / 64.0).abs() < 1e-12, "{idf1}");
+    }
+
+    /// An object leaves the frame at the right (radius 5, wholly in view up to frame 3, partly
+    /// up to 6). A follows it while it is wholly in view; B picks it up as it leaves, on the
+    /// part still in view: B follows the object (a second track on it), not nothing, and
+    /// has no error, since no frame of it is scored. The report reads back from its JSON,
+    /// NaN (`null`) and all.
+    #[test]
+    fn a_track_on_an_object_leaving_the_view_follows_it() {
+        let x = |n: usize| 80.0 + 4.0 * n as f64;
+        let truth = Truth {
+            width: 100,
+            height: 100,
+            fps: 30.0,
+            frames: 20,
+            objects: vec![TruthObject {
+                index: 0,
+                radius: 5.0,
+                centroids: (0..20).map(|n| [x(n), 50.0]).collect(),
+                visible: (0..20).map(|n| x(n) + 5.0 <= 100.0).collect(),
+            }],
+        };
+        let on = |id: usize, frames: std::ops::Range<usize>| ObjectTrack {
+            id,
+            frames: track(id, 50.0, 0.0)
+                .frames
+                .into_iter()
+                .filter(|f| frames.contains(&f.frame))
+                .map(|f| FrameRecord {
+                    centroid: [x(f.frame).min(99.0), 50.0],
+                    ..f
+                })
+                .collect(),
+        };
+        let tracks = Tracks {
+            objects: vec![on(1, 0..4), on(2, 4..7)],
+            ms_per_frame: None,
+            background_flow: None,
+        };
+        let r = evaluate(&tracks, &truth).unwrap();
+        assert_eq!(r.objects[0].truth_index, Some(0));
+        assert_eq!(
+            (r.objects[1].truth_index, r.objects[1].second_on),
+            (None, Some(0))
+        );
+        assert_eq!((r.false_tracks(), r.second_tracks()), (0, 1));
+        // Frames 4–6: the object is only partly in view, so nothing of B is scored.
+        assert!(r.objects[1].centre_error.is_nan());
+        assert_eq!(r.objects[1].horizons[0].count, 0);
+        // A track far from it still follows nothing.
+        let far = Tracks {
+            objects: vec![on(1, 0..4), track(3, 10.0, 0.0)],
+            ms_per_frame: None,
+            background_flow: None,
+        };
+        assert_eq!(evaluate(&far, &truth).unwrap().false_tracks(), 1);
+        // The JSON round trip keeps the NaNs.
+        let text = serde_json::to_string(&r).unwrap();
+        assert!(text.contains("null"), "{text}");
+        let back: TrackReport = serde_json::from_str(&text).unwrap();
+        assert!(
+            back.objects[1].horizons[0].rmse_2d.is_nan() && back.objects[1].centre_error.is_nan()
+        );
+        assert_eq!(back.objects[0], r.objects[0]);
     }
 
     #[test]
