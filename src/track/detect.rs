@@ -228,6 +228,10 @@ pub struct FrameDetection {
     /// from the flow, but the change mask and the photometric test took the background as
     /// still; `None` when the frames supported it or were not checked.
     pub rejected_background: Option<GlobalMotion>,
+    /// Whether the frames explain the fitted motion beyond what its warp's interpolation of
+    /// their noise does (`GreyPair::explains`); `true` when they were not asked. The placement
+    /// takes the camera as still when they do not.
+    pub background_explained: bool,
     /// The magnitude threshold used (px/frame, relative to the background).
     pub threshold: f64,
     /// The change test's level (grey levels in [0, 1]), when it ran.
@@ -264,8 +268,10 @@ impl FrameDetection {
     /// place in the candidates, one per track.
     pub fn place(&mut self, model: &mut StillBackground, frame: &ColourFrame, seeds: &[Seed]) {
         let camera = match self.rejected_background {
-            Some(_) => 0.0,
-            None => self.background.max_magnitude(frame.width, frame.height),
+            None if self.background_explained => {
+                self.background.max_magnitude(frame.width, frame.height)
+            }
+            _ => 0.0,
         };
         let accepted: Vec<&Candidate> = self.candidates.iter().filter(|c| c.accepted).collect();
         let wanted: Vec<((f64, f64), usize)> = accepted
@@ -333,6 +339,12 @@ pub fn detect(
         && background.params.iter().any(|&a| a != 0.0)
         && (cfg.photometric || cfg.change == Some(true))
         && frames.and_then(|p| p.supports(&background, cfg.background_samples)) == Some(false);
+    // Whether the camera moves is asked without the interpolation's gain: a still, flat
+    // background under MMS can carry several pixels of spurious motion that a warp
+    // "explains" only by averaging the noise (`GreyPair::explains`).
+    let background_explained = !(cfg.check_background
+        && background.params.iter().any(|&a| a != 0.0)
+        && frames.and_then(|p| p.explains(&background, cfg.background_samples)) == Some(false));
     let (null, rejected_background) = if unsupported {
         (GlobalMotion::zero(), Some(background))
     } else {
@@ -464,6 +476,7 @@ pub fn detect(
     Ok(FrameDetection {
         background,
         rejected_background,
+        background_explained,
         threshold,
         change_level: changed.map(|(_, c)| c.level),
         candidates,
@@ -718,6 +731,7 @@ mod tests {
         let mut found = FrameDetection {
             background: GlobalMotion::zero(),
             rejected_background: None,
+            background_explained: true,
             threshold: 0.5,
             change_level: None,
             candidates: vec![

@@ -142,6 +142,9 @@ pub struct DebugFrame {
     /// background as still).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub background_rejected: Option<[f64; 2]>,
+    /// False when the frames support the fitted motion no more than its warp's interpolation
+    /// of their noise does (`GreyPair::explains`): the placement took the camera as still.
+    pub background_explained: bool,
     pub regions: Vec<DebugRegion>,
     /// Tentative tracks with a full but inconsistent confirmation window.
     pub held: Vec<Held>,
@@ -345,6 +348,7 @@ pub fn track_sequence(
                     let c = g.at(cx, cy);
                     [c.0, c.1]
                 }),
+                background_explained: found.background_explained,
                 regions: found
                     .candidates
                     .iter()
