@@ -97,6 +97,11 @@ struct RunArgs {
     /// Kalman measurement noise of a region's speed and direction.
     #[arg(long)]
     motion_r: Option<f64>,
+    /// Measurement noise (px²/frame²) of the motion the frames confirm (--align) as the
+    /// velocity of the filter the forecasts start from (the tracking filter's velocity is the
+    /// flow's); `none` starts them from the tracking filter's centre [default: 0.25]
+    #[arg(long, value_parser = parse_aligned_motion_r)]
+    aligned_motion_r: Option<AlignedMotionR>,
     /// Samples of the speed and direction fits: the region's flow (the paper's), the
     /// position filter's velocity (which placed centroids correct where the flow
     /// underestimates a small mover), or `auto`: the filter's where the region was placed on
@@ -340,6 +345,10 @@ fn run(a: RunArgs) -> Result<()> {
             trend_reach: a.trend_reach,
             position_r: a.position_r.unwrap_or(MtpConfig::default().position_r),
             motion_r: a.motion_r.unwrap_or(MtpConfig::default().motion_r),
+            aligned_motion_r: match a.aligned_motion_r {
+                Some(AlignedMotionR(r)) => r,
+                None => MtpConfig::default().aligned_motion_r,
+            },
             motion_source: match a.motion_source {
                 MotionSourceArg::Auto => mtp::MotionSource::Auto,
                 MotionSourceArg::Flow => mtp::MotionSource::Flow,
@@ -634,4 +643,18 @@ fn experiment(a: ExperimentArgs) -> Result<()> {
     )?;
     io::write_bytes_atomic(&a.out.join("report.txt"), text.as_bytes())?;
     Ok(())
+}
+
+/// `--aligned-motion-r`: a variance, or `none`.
+#[derive(Clone, Copy, Debug)]
+struct AlignedMotionR(Option<f64>);
+
+fn parse_aligned_motion_r(s: &str) -> std::result::Result<AlignedMotionR, String> {
+    if s == "none" {
+        return Ok(AlignedMotionR(None));
+    }
+    match s.parse::<f64>() {
+        Ok(r) if r.is_finite() && r > 0.0 => Ok(AlignedMotionR(Some(r))),
+        _ => Err(format!("expected a variance > 0 or `none`, got {s:?}")),
+    }
 }
