@@ -73,7 +73,7 @@ enum Command {
     #[command(subcommand)]
     Array(ArrayCommand),
     /// Track moving objects through a folder of flow maps and predict their trajectories (Note S13).
-    Track(TrackArgs),
+    Track(Box<TrackArgs>),
     /// Read the ESP32 camera's MJPEG stream (or a recording), estimate flow, track and predict
     /// live: one JSON line per processed frame, --record/--replay, a browser view (Note S1).
     Live(LiveArgs),
@@ -144,7 +144,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Compare(a) => compare(a),
         Command::Optics(c) => optics(c),
         Command::Array(c) => array(c),
-        Command::Track(a) => track(a),
+        Command::Track(a) => track(*a),
         Command::Live(a) => live(a),
     }
 }
