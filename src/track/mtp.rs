@@ -77,8 +77,9 @@ pub struct MtpConfig {
     /// and the velocity gate keep the tracking filter's, whose velocity is what the
     /// detections' flow is compared with. An estimated flow that gives a small mover half its
     /// motion holds the tracking filter's centre back behind the object (docs/tracking.md).
-    /// `null` starts the forecasts from the tracking filter's centre. Without aligned motions
-    /// (a given flow's own regions) the two filters are the same.
+    /// While the object is unseen the twin takes the tracking filter's state. `null` starts
+    /// the forecasts from the tracking filter's centre. Without aligned motions (a given
+    /// flow's own regions) the two filters are the same.
     pub aligned_motion_r: Option<f64>,
 }
 
@@ -342,7 +343,13 @@ impl Mtp {
                 });
                 (s, d)
             }
-            None => (self.speed.step(f64::NAN), None),
+            None => {
+                // Unseen, the twin takes the tracking filter's state: coasting on an aligned
+                // velocity that one bad alignment set drifts off (docs/tracking.md).
+                self.ahead_x = self.x.clone();
+                self.ahead_y = self.y.clone();
+                (self.speed.step(f64::NAN), None)
+            }
         };
         // The flow at frame n is the motion over [n, n + 1]: its time is n + ½.
         self.history
