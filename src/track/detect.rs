@@ -335,16 +335,15 @@ pub fn detect(
     // fit still comes off the flow before the threshold (an estimator's bias is removed like
     // a camera's motion), but the tests that ask the frames what changed (the change mask and
     // the photometric test) compare against the motion the frames support.
-    let unsupported = cfg.check_background
-        && background.params.iter().any(|&a| a != 0.0)
-        && (cfg.photometric || cfg.change == Some(true))
-        && frames.and_then(|p| p.supports(&background, cfg.background_samples)) == Some(false);
+    let judged = (cfg.check_background && background.params.iter().any(|&a| a != 0.0))
+        .then(|| frames.and_then(|p| p.judge(&background, cfg.background_samples)))
+        .flatten();
+    let unsupported =
+        (cfg.photometric || cfg.change == Some(true)) && judged.is_some_and(|j| !j.supported);
     // Whether the camera moves is asked without the interpolation's gain: a still, flat
     // background under MMS can carry several pixels of spurious motion that a warp
     // "explains" only by averaging the noise (`GreyPair::explains`).
-    let background_explained = !(cfg.check_background
-        && background.params.iter().any(|&a| a != 0.0)
-        && frames.and_then(|p| p.explains(&background, cfg.background_samples)) == Some(false));
+    let background_explained = judged.is_none_or(|j| j.explained);
     let (null, rejected_background) = if unsupported {
         (GlobalMotion::zero(), Some(background))
     } else {

@@ -295,9 +295,10 @@ impl Mtp {
                     Some(_) => self.config.placed_motion_r,
                     None => self.config.motion_r,
                 };
-                if let Some(d) = r.direction {
-                    self.x.update_velocity(r.speed * d.cos(), vr);
-                    self.y.update_velocity(r.speed * d.sin(), vr);
+                let flow_velocity = r.direction.map(|d| (r.speed * d.cos(), r.speed * d.sin()));
+                if let Some((u, v)) = flow_velocity {
+                    self.x.update_velocity(u, vr);
+                    self.y.update_velocity(v, vr);
                 }
                 match (r.aligned, self.config.aligned_motion_r) {
                     (Some((u, v)), Some(ra)) => {
@@ -310,9 +311,9 @@ impl Mtp {
                         }
                     }
                     _ => {
-                        if let Some(d) = r.direction {
-                            self.ahead_x.update_velocity(r.speed * d.cos(), vr);
-                            self.ahead_y.update_velocity(r.speed * d.sin(), vr);
+                        if let Some((u, v)) = flow_velocity {
+                            self.ahead_x.update_velocity(u, vr);
+                            self.ahead_y.update_velocity(v, vr);
                         }
                     }
                 }

@@ -32,6 +32,15 @@ impl GreyFrame {
     }
 }
 
+/// What the frames say of a global motion (`GreyPair::judge`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MotionJudgement {
+    /// The warp lowers the residual (`GreyPair::supports`).
+    pub supported: bool,
+    /// It lowers it by more than its interpolation of the noise does (`GreyPair::explains`).
+    pub explained: bool,
+}
+
 /// Two consecutive frames.
 #[derive(Clone, Debug)]
 pub struct GreyPair {
@@ -134,8 +143,7 @@ impl GreyPair {
     /// photometric test would pass them. Movers add the same to both means. `None` when no
     /// grid pixel counts.
     pub fn supports(&self, motion: &GlobalMotion, samples: usize) -> Option<bool> {
-        self.support_sums(motion, samples, false)
-            .map(|(with, without)| with < without)
+        self.judge(motion, samples).map(|j| j.supported)
     }
 
     /// Whether the frames support the global `motion` by more than the warp's interpolation
@@ -147,39 +155,33 @@ impl GreyPair {
     /// this way (`FrameDetection::place`); the photometric test's background stays the
     /// one `supports` accepts, whose warp interpolates both of its residuals alike.
     pub fn explains(&self, motion: &GlobalMotion, samples: usize) -> Option<bool> {
-        self.support_sums(motion, samples, true)
-            .map(|(with, without)| with < without)
+        self.judge(motion, samples).map(|j| j.explained)
     }
 
-    /// The summed residuals over `supports`' grid with `motion` and without, the latter scaled
-    /// by `interpolation_gain` when `fair`; `None` when no grid pixel counts.
-    fn support_sums(
-        &self,
-        motion: &GlobalMotion,
-        samples: usize,
-        fair: bool,
-    ) -> Option<(f64, f64)> {
+    /// `supports` and `explains` at once, over one pass of the grid; `None` when no grid
+    /// pixel counts.
+    pub fn judge(&self, motion: &GlobalMotion, samples: usize) -> Option<MotionJudgement> {
         let (w, h) = (self.width, self.height);
         let stride = (((h * w) as f64 / samples.max(16) as f64).sqrt().floor() as usize).max(1);
-        let (mut sm, mut sz, mut n) = (0.0f64, 0.0f64, 0usize);
+        let (mut with, mut without, mut fair, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
         for y in (stride / 2..h).step_by(stride) {
             for x in (stride / 2..w).step_by(stride) {
                 let (xf, yf) = (x as f64, y as f64);
                 let (mu, mv) = motion.at(xf, yf);
                 if let (Some(bm), Some(bz)) = (self.sample(xf + mu, yf + mv), self.sample(xf, yf)) {
                     let a = self.a[y * w + x] as f64;
-                    let gain = if fair {
-                        interpolation_gain(mu, mv)
-                    } else {
-                        1.0
-                    };
-                    sm += (a - bm).abs();
-                    sz += gain * (a - bz).abs();
+                    let still = (a - bz).abs();
+                    with += (a - bm).abs();
+                    without += still;
+                    fair += interpolation_gain(mu, mv) * still;
                     n += 1;
                 }
             }
         }
-        (n > 0).then_some((sm, sz))
+        (n > 0).then_some(MotionJudgement {
+            supported: with < without,
+            explained: with < fair,
+        })
     }
 
     /// |frame 1 − frame 2 at the pixel moved by `shift`| at pixel `p` (a flat index); `None`
