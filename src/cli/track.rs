@@ -233,6 +233,10 @@ struct RunArgs {
     /// standard deviations.
     #[arg(long, default_value_t = 3.0)]
     reid_k: f64,
+    /// Weak detections (regions that passed the photometric test only with the motion the
+    /// frames confirm) continue confirmed tracks only, not tentative ones (ByteTrack's rule).
+    #[arg(long)]
+    weak_confirmed_only: bool,
     /// Write every frame's regions, their verdicts and reasons to DIR/regions.jsonl.
     #[arg(long)]
     debug: Option<PathBuf>,
@@ -367,6 +371,7 @@ fn run(a: RunArgs) -> Result<()> {
         foreground_gate: a.foreground_gate,
         reid_frames: a.reid_frames,
         reid_k: a.reid_k,
+        weak_continues_tentative: !a.weak_confirmed_only,
         ..TrackerConfig::default()
     };
     tracker.mtp.validate()?;

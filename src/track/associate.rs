@@ -1,8 +1,9 @@
 //! Association of one frame's detections with the tracks (Note S13's many objects, Movie S2):
 //! gated optimal assignment on the distance to each track's prediction (with its velocity and
 //! appearance gates and the appearance cost) over the detections that passed the photometric
-//! test with their flow, then the weak ones (`track::retry`) for the confirmed tracks left
-//! (ByteTrack's low-score detections), a second chance by distance alone for confirmed tracks
+//! test with their flow, then the weak ones (`track::retry`) for the tracks left, confirmed
+//! or (`TrackerConfig::weak_continues_tentative`) tentative (ByteTrack's low-score
+//! detections, which go to confirmed tracks only), a second chance by distance alone for confirmed tracks
 //! still without a detection (ByteTrack's second association), and the merges, regions that
 //! hide a second confirmed track's object.
 
@@ -62,7 +63,7 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
                 .collect()
         })
         .collect();
-    // The weak detections wait for the confirmed tracks the others leave.
+    // The weak detections wait for the tracks the others leave.
     let all: Vec<usize> = (0..tracks.len()).collect();
     let strong = only(&cost, &all, |j| !detections[j].weak);
     let mut matches = if config.match_cascade {
@@ -72,7 +73,9 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
     };
     if detections.iter().any(|d| d.weak) {
         let rows: Vec<usize> = (0..tracks.len())
-            .filter(|&i| matches[i].is_none() && tracks[i].confirmed)
+            .filter(|&i| {
+                matches[i].is_none() && (tracks[i].confirmed || config.weak_continues_tentative)
+            })
             .collect();
         let weak = only(&cost, &rows, |j| detections[j].weak);
         for (&i, m) in rows.iter().zip(assign(&weak)) {
@@ -206,12 +209,15 @@ mod tests {
         }
     }
 
-    /// A weak detection (`track::retry`) goes to a confirmed track the others left, never to
-    /// a tentative one, and a confirmed track takes a detection that passed with its flow
-    /// before a weak one.
+    /// A weak detection (`track::retry`) goes to a track the others left, a tentative one
+    /// only with `weak_continues_tentative`, and a track takes a detection that passed with
+    /// its flow before a weak one.
     #[test]
-    fn a_weak_detection_continues_a_confirmed_track_only() {
-        let config = TrackerConfig::default();
+    fn a_weak_detection_continues_a_track_the_others_left() {
+        let config = TrackerConfig {
+            weak_continues_tentative: false,
+            ..TrackerConfig::default()
+        };
         let weak = |x: f64| Region {
             weak: true,
             ..det(x, 10.0, (2.0, 0.0), 100)
@@ -233,6 +239,16 @@ mod tests {
         assert_eq!(
             associate(&tracks[..1], &plain, &config).matches,
             vec![Some(0)]
+        );
+        // The default: the tentative track takes its weak detection too, and still prefers
+        // one that passed with its flow.
+        let config = TrackerConfig::default();
+        let a = associate(&tracks, &[weak(12.0), weak(52.0)], &config);
+        assert_eq!(a.matches, vec![Some(0), Some(1)]);
+        let near = [weak(50.5), det(54.0, 10.0, (2.0, 0.0), 100)];
+        assert_eq!(
+            associate(&tracks[1..], &near, &config).matches,
+            vec![Some(1)]
         );
     }
 

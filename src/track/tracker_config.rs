@@ -85,6 +85,13 @@ pub struct TrackerConfig {
     /// deviations (`appearance_floor` at least); of several, the nearest in colour. Both need
     /// colours (frames).
     pub reid_k: f64,
+    /// A weak detection (`track::retry`: a region that passed the photometric test only with
+    /// the motion the frames confirm) may continue a tentative track, one that a detection
+    /// which passed with its flow started, as well as a confirmed one; either way it starts
+    /// none. Off, only confirmed tracks take weak detections (ByteTrack's second association):
+    /// a disc textured like its background, whose flow passes the test now and then, starts
+    /// tentative tracks that die at its first weak frame and is never confirmed.
+    pub weak_continues_tentative: bool,
 }
 
 impl Default for TrackerConfig {
@@ -111,6 +118,7 @@ impl Default for TrackerConfig {
             match_cascade: false,
             reid_frames: 150,
             reid_k: 3.0,
+            weak_continues_tentative: true,
         }
     }
 }

@@ -522,3 +522,39 @@ fn weak_detections_continue_a_track_but_start_none() {
     assert!(ids.iter().all(|i| i.1 == ids[0].1), "{ids:?}");
     assert_eq!(ids.last().map(|i| i.0), Some(29), "{ids:?}");
 }
+
+/// An object whose flow passes the photometric test only every third frame (a disc textured
+/// like its background), the frames confirming its motion in between (weak detections): its
+/// tentative tracks, started by the detections that passed with their flow, are carried on by
+/// the weak ones and confirmed; with weak detections for confirmed tracks only, each
+/// tentative track dies at its first weak frame and the object is never reported.
+#[test]
+fn weak_detections_carry_a_tentative_track_to_its_confirmation() {
+    let at = |n: usize| {
+        let d = det(20.0 + 3.0 * n as f64, 50.0, 3.0, 0.0);
+        Region {
+            weak: n % 3 != 0,
+            ..d
+        }
+    };
+    let run = |weak_continues_tentative: bool| {
+        let mut tr = Tracker::new(TrackerConfig {
+            weak_continues_tentative,
+            ..TrackerConfig::default()
+        })
+        .unwrap();
+        let mut ids = std::collections::BTreeSet::new();
+        let mut reported = 0;
+        for n in 0..30 {
+            for t in tr.step(n, &[at(n)], 1).unwrap() {
+                ids.insert(t.id);
+                reported += 1;
+            }
+        }
+        (ids.len(), reported)
+    };
+    let (tracks, reported) = run(true);
+    assert_eq!(tracks, 1);
+    assert!(reported >= 24, "reported on {reported} frames");
+    assert_eq!(run(false), (0, 0));
+}
