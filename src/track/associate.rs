@@ -3,9 +3,9 @@
 //! appearance gates and the appearance cost) over the detections that passed the photometric
 //! test with their flow, then the weak ones (`track::retry`) for the tracks left, confirmed
 //! or (`TrackerConfig::weak_continues_tentative`) tentative (ByteTrack's low-score
-//! detections, which go to confirmed tracks only), a second chance by distance alone for confirmed tracks
-//! still without a detection (ByteTrack's second association), and the merges, regions that
-//! hide a second confirmed track's object.
+//! detections, which go to confirmed tracks only), a second chance by distance alone for
+//! confirmed tracks still without a detection (ByteTrack's second association), and the
+//! merges, regions that hide a second confirmed track's object.
 
 use super::appearance::Appearance;
 use super::hungarian::assign;

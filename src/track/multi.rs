@@ -450,7 +450,7 @@ impl Tracker {
         self.tracks
             .retain(|t| t.misses <= patience && (t.confirmed || t.misses == 0));
         for (j, d) in detections.iter().enumerate() {
-            // A weak detection (`track::retry`) continues a confirmed track, never starts one.
+            // A weak detection (`track::retry`) continues a track, never starts one.
             if used[j] || d.weak {
                 continue;
             }

@@ -4,8 +4,9 @@
 //! the region fails, frame after frame, though the frames show the object moving. Such a
 //! region is retried with its aligned motion (`track::align`) and, where that explains the
 //! change, accepted as a *weak* detection: as ByteTrack's low-score detections, it continues a
-//! confirmed track (`track::associate`) but starts none (`track::multi`), so the spurious
-//! blobs a search over shifts can explain by chance make no tracks.
+//! track (`track::associate`; a tentative one too, by default) but starts none
+//! (`track::multi`), so the spurious blobs a search over shifts can explain by chance make no
+//! tracks.
 
 use super::align::align;
 use super::photometric::GreyPair;

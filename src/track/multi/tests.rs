@@ -533,7 +533,7 @@ fn weak_detections_carry_a_tentative_track_to_its_confirmation() {
     let at = |n: usize| {
         let d = det(20.0 + 3.0 * n as f64, 50.0, 3.0, 0.0);
         Region {
-            weak: n % 3 != 0,
+            weak: !n.is_multiple_of(3),
             ..d
         }
     };
