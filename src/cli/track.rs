@@ -165,6 +165,12 @@ struct RunArgs {
     /// Placement: frames in the background's temporal median.
     #[arg(long, default_value_t = 30)]
     place_frames: usize,
+    /// Placement: weigh frame n's colour difference from the background in 8-bit levels, not
+    /// in the camera's noise at each pixel's level (the default, measured on the still
+    /// background: a mover over a dark, quiet part of it counts as surely as over a bright,
+    /// noisy one).
+    #[arg(long)]
+    place_levels: bool,
     /// Placement: a region over the predictions of two or more confirmed tracks (their objects
     /// met in the flow) is split between them where the frame's foreground shows an object
     /// near each prediction, at least this share of the sum of their radii apart; 0 turns the
@@ -421,6 +427,7 @@ fn run(a: RunArgs) -> Result<()> {
             frames: a.place_frames,
             min_frames: PlaceConfig::default().min_frames.min(a.place_frames.max(1)),
             split: a.split_separation,
+            pixel_noise: !a.place_levels,
             ..PlaceConfig::default()
         },
         ..DetectConfig::default()

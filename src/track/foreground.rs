@@ -1,11 +1,14 @@
 //! Frame n's foreground against the still camera's background (Note S13's region of
 //! interest, measured on the frame): the per-pixel temporal median of the stored frames,
-//! leaving out in each the discs where its objects were (`PlaceConfig::mask`), and the mean
-//! shift that finds an object's centre (Eq. S17's centroid) on the weight above the frame's
-//! noise floor (Comaniciu & Meer 2002).
+//! leaving out in each the discs where its objects were (`PlaceConfig::mask`), each channel's
+//! difference from it in units of the camera's noise at that level (`track::noise_level`),
+//! and the mean shift that finds
+//! an object's centre (Eq. S17's centroid) on the weight above the frame's noise floor
+//! (Comaniciu & Meer 2002).
 
 use std::collections::VecDeque;
 
+use super::noise_level::NoiseLevel;
 use super::still_background::{ColourFrame, PlaceConfig, Placement};
 
 /// Fewest frames a pixel's median leaves it uncovered in before the covered ones are left
@@ -15,17 +18,25 @@ pub const MIN_UNCOVERED: usize = 3;
 /// The discs (centre, radius) a stored frame's objects covered.
 pub(super) type Covered = Vec<((f64, f64), f64)>;
 
-/// Frame n against the median of the stored frames: `D` = √(box mean of Σ_c (I_c − B_c)²)
-/// (8-bit levels), computed where asked and cached; the weight is max(D − level, 0).
+/// Frame n against the median of the stored frames: `D` = √(box mean of Σ_c (I_c − B_c)² /
+/// s_c²), computed where asked and cached; the weight is max(D − level, 0). `s_c` is the
+/// camera's noise at the background's level `B_c` (`NoiseLevel`, measured on the frame's grid
+/// of still-background pixels, floored by `PlaceConfig::noise_floor`), or 1 (8-bit levels)
+/// when `PlaceConfig::pixel_noise` is off. In levels, a mover over a dark, quiet part of the
+/// background (the sensor's noise grows with the signal, Eq. S3) falls below a level set by
+/// the bright parts, and the centre leans to the disc's brighter side; in the noise of each
+/// pixel's level every pixel counts by how surely it differs.
 pub(super) struct Foreground<'a> {
     frames: &'a VecDeque<ColourFrame>,
     /// Where each stored frame's objects were (left out of the median).
     covered: &'a VecDeque<Covered>,
     current: &'a ColourFrame,
-    /// Σ_c (I_c − B_c)² per pixel, NaN until computed, `[H, W]`.
+    /// Σ_c (I_c − B_c)² / s_c² per pixel, NaN until computed, `[H, W]`.
     sq: std::cell::RefCell<Vec<f32>>,
     radius: usize,
     level: f64,
+    /// The camera's noise by level, `None`: D in levels.
+    noise: Option<NoiseLevel>,
 }
 
 impl<'a> Foreground<'a> {
@@ -35,6 +46,7 @@ impl<'a> Foreground<'a> {
         current: &'a ColourFrame,
         window: usize,
         k: f64,
+        noise_floor: Option<f64>,
     ) -> Self {
         let (w, h) = (current.width, current.height);
         let mut fg = Self {
@@ -44,14 +56,23 @@ impl<'a> Foreground<'a> {
             sq: std::cell::RefCell::new(vec![f32::NAN; w * h]),
             radius: window / 2,
             level: 0.0,
+            noise: None,
         };
-        // The frame's noise floor from a grid of about 32 × 32 samples.
+        // The frame's noise (by level, then as a floor of D) from a grid of about 32 × 32
+        // samples.
         let (sx, sy) = ((w / 32).max(1), (h / 32).max(1));
-        let mut d: Vec<f64> = (0..h)
+        let grid: Vec<(usize, usize)> = (0..h)
             .step_by(sy)
             .flat_map(|y| (0..w).step_by(sx).map(move |x| (x, y)))
-            .map(|(x, y)| fg.d(x, y))
             .collect();
+        if let Some(floor) = noise_floor {
+            let samples = grid.iter().flat_map(|&(x, y)| {
+                let at = fg.background_at(y * w + x);
+                (0..current.channels).map(move |c| (c, at[c].0, at[c].1))
+            });
+            fg.noise = Some(NoiseLevel::fit(samples.collect::<Vec<_>>(), floor as f32));
+        }
+        let mut d: Vec<f64> = grid.iter().map(|&(x, y)| fg.d(x, y)).collect();
         if !d.is_empty() {
             let med = median(&mut d);
             let mut dev: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
@@ -61,13 +82,10 @@ impl<'a> Foreground<'a> {
         fg
     }
 
-    /// Σ_c (I_c − median_t B_c)² at one pixel, the median over the stored frames whose
-    /// objects did not cover it (over all of them where fewer than `MIN_UNCOVERED` did not).
-    fn sq_at(&self, p: usize) -> f32 {
-        let cached = self.sq.borrow()[p];
-        if !cached.is_nan() {
-            return cached;
-        }
+    /// Per channel (the first `channels`), the median of the stored frames' samples at pixel
+    /// `p` and the median absolute deviation about it, over the frames whose objects did not
+    /// cover it (over all of them where fewer than `MIN_UNCOVERED` did not).
+    fn background_at(&self, p: usize) -> [(f32, f32); 3] {
         let w = self.current.width;
         let (x, y) = ((p % w) as f64, (p / w) as f64);
         let free = |i: usize| {
@@ -85,15 +103,18 @@ impl<'a> Foreground<'a> {
         if use_frame[..n_all].iter().filter(|&&u| u).count() < MIN_UNCOVERED {
             use_frame = [true; 255];
         }
-        let mut s = 0.0f32;
+        let mut out = [(0.0f32, 0.0f32); 3];
         let mut buf = [0u8; 255];
-        for c in 0..self.current.channels {
+        for (c, o) in out.iter_mut().enumerate().take(self.current.channels) {
             let mut n = 0;
             for (i, f) in self.frames.iter().enumerate().take(n_all) {
                 if use_frame[i] {
                     buf[n] = f.plane(c)[p];
                     n += 1;
                 }
+            }
+            if n == 0 {
+                continue;
             }
             let vals = &mut buf[..n];
             vals.sort_unstable();
@@ -102,8 +123,23 @@ impl<'a> Foreground<'a> {
             } else {
                 (vals[n / 2 - 1] as f32 + vals[n / 2] as f32) / 2.0
             };
+            *o = (b, median_deviation(vals, b));
+        }
+        out
+    }
+
+    /// Σ_c (I_c − B_c)² / s_c² at one pixel (`background_at`'s medians).
+    fn sq_at(&self, p: usize) -> f32 {
+        let cached = self.sq.borrow()[p];
+        if !cached.is_nan() {
+            return cached;
+        }
+        let at = self.background_at(p);
+        let mut s = 0.0f32;
+        for (c, &(b, _)) in at.iter().enumerate().take(self.current.channels) {
             let e = self.current.plane(c)[p] as f32 - b;
-            s += e * e;
+            let var = self.noise.as_ref().map_or(1.0, |nl| nl.sigma(c, b).powi(2));
+            s += e * e / var;
         }
         self.sq.borrow_mut()[p] = s;
         s
@@ -222,7 +258,43 @@ pub(crate) fn disc(
         .filter(move |&(x, y)| (x as f64 - centre.0).hypot(y as f64 - centre.1) <= radius)
 }
 
+/// The median of |v − b| over the 8-bit `samples` (at most 255; 0 for none), the two middle
+/// ones averaged for an even count as for the median itself.
+fn median_deviation(samples: &[u8], b: f32) -> f32 {
+    let n = samples.len().min(255);
+    if n == 0 {
+        return 0.0;
+    }
+    let mut dev = [0.0f32; 255];
+    for (d, &v) in dev.iter_mut().zip(&samples[..n]) {
+        *d = (v as f32 - b).abs();
+    }
+    let dev = &mut dev[..n];
+    dev.sort_unstable_by(f32::total_cmp);
+    if n % 2 == 1 {
+        dev[n / 2]
+    } else {
+        (dev[n / 2 - 1] + dev[n / 2]) / 2.0
+    }
+}
+
 fn median(v: &mut [f64]) -> f64 {
     let mid = v.len() / 2;
     *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::median_deviation;
+
+    #[test]
+    fn the_median_deviation_is_the_median_of_the_distances_from_the_median() {
+        // Sorted 1 2 4 9 20 about 4: distances 3 2 0 5 16 → median 3.
+        assert_eq!(median_deviation(&[1, 2, 4, 9, 20], 4.0), 3.0);
+        // An even count about 3.5: distances 2.5 1.5 0.5 5.5 → the middle two averaged, 2.
+        assert_eq!(median_deviation(&[1, 2, 4, 9], 3.5), 2.0);
+        // A flat pixel spreads by nothing (the floor takes over), and no sample is no spread.
+        assert_eq!(median_deviation(&[7; 30], 7.0), 0.0);
+        assert_eq!(median_deviation(&[], 0.0), 0.0);
+    }
 }

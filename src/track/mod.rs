@@ -20,6 +20,7 @@ pub mod kalman;
 pub mod mtp;
 pub mod multi;
 pub mod noise_floor;
+pub mod noise_level;
 pub mod photometric;
 pub mod points;
 pub mod predict;

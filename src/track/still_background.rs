@@ -111,6 +111,14 @@ pub struct PlaceConfig {
     /// predictions of the tracks it hides must lie at least this share of the sum of their
     /// radii apart, or the region stays one (one object hides the other). 0 turns it off.
     pub split: f64,
+    /// The colour difference is weighed in the camera's noise at each pixel's level (each
+    /// channel's temporal spread as a function of its level, measured on the still
+    /// background: `track::noise_level`) rather than in 8-bit levels: a mover over a dark,
+    /// quiet part of the background counts as surely as over a bright, noisy one.
+    pub pixel_noise: bool,
+    /// The floor of that spread (8-bit levels) with `pixel_noise`: quantisation makes a flat
+    /// or clipped background's spread 0.
+    pub noise_floor: f64,
     /// Above this background motion (px/frame, its largest over the frame), the camera moves:
     /// the model starts over. Not lower: an estimated flow's global bias on a still scene
     /// reaches 0.5–0.8 px at the corners, and a sub-pixel warp's smoothing lets the frames
@@ -132,6 +140,8 @@ impl Default for PlaceConfig {
             mask: 1.5,
             crowd: 2.5,
             split: 0.5,
+            pixel_noise: true,
+            noise_floor: 3.0,
             max_camera_motion: 2.0,
         }
     }
@@ -182,7 +192,18 @@ impl PlaceConfig {
                 ));
             }
         }
+        if !(self.noise_floor.is_finite() && self.noise_floor > 0.0) {
+            return Err(Error::invalid(
+                "detect.place.noise_floor",
+                format!("must be finite and > 0, got {}", self.noise_floor),
+            ));
+        }
         Ok(())
+    }
+
+    /// The spread's floor where differences are weighed in each pixel's noise.
+    fn noise(&self) -> Option<f64> {
+        self.pixel_noise.then_some(self.noise_floor)
     }
 }
 
@@ -302,7 +323,14 @@ impl StillBackground {
                     let mine = seeds.get(i).map_or(&[][..], Vec::as_slice);
                     if cfg.split > 0.0 && mine.len() >= 2 {
                         let fg = fg.get_or_insert_with(|| {
-                            Foreground::new(&self.frames, &self.covered, frame, cfg.window, cfg.k)
+                            Foreground::new(
+                                &self.frames,
+                                &self.covered,
+                                frame,
+                                cfg.window,
+                                cfg.k,
+                                cfg.noise(),
+                            )
                         });
                         if let Some(to) = fg.split(mine, cfg) {
                             return Placement::Split { to };
@@ -314,7 +342,14 @@ impl StillBackground {
                         ));
                     }
                     let fg = fg.get_or_insert_with(|| {
-                        Foreground::new(&self.frames, &self.covered, frame, cfg.window, cfg.k)
+                        Foreground::new(
+                            &self.frames,
+                            &self.covered,
+                            frame,
+                            cfg.window,
+                            cfg.k,
+                            cfg.noise(),
+                        )
                     });
                     fg.place(c, area, cfg)
                 })
@@ -489,7 +524,8 @@ mod tests {
         // Masked: no weight there (0.0 here); unmasked: the ghost (36 levels here).
         for (mask, ghost_at_most, ghost_at_least) in [(1.5, 1.0, 0.0), (0.0, f64::INFINITY, 20.0)] {
             let m = model(mask);
-            let fg = Foreground::new(&m.frames, &m.covered, &f, 5, 3.0);
+            // In 8-bit levels, as the numbers below.
+            let fg = Foreground::new(&m.frames, &m.covered, &f, 5, 3.0, None);
             // The mean weight over the 9 px behind the disc's blurred edge.
             let (x0, y) = (truth.0 as usize - 20, truth.1 as usize);
             let ghost = (x0..x0 + 9).map(|x| fg.weight(x, y)).sum::<f64>() / 9.0;
@@ -512,6 +548,64 @@ mod tests {
         assert!(
             without > with + 0.5,
             "unmasked {without:.2} px off, masked {with:.2}"
+        );
+    }
+
+    /// Frame `n` of a background whose left half is bright and noisy (150 levels, σ = 12) and
+    /// right half dark and quiet (30 levels, σ = 3), grey, with a grey disc of radius 8 and 54
+    /// levels at `centre(n)` under the noise of the half each pixel lies in: the disc differs
+    /// from the bright half by 96 levels and from the dark by 24, by 8 σ from either.
+    fn halves(n: usize, centre: impl Fn(usize) -> (f64, f64), seed: u64) -> ColourFrame {
+        let mut rng = crate::rng::stream(seed, &[n as u64]);
+        let mut img = Image::zeros(3, H, W);
+        let (cx, cy) = centre(n);
+        for y in 0..H {
+            for x in 0..W {
+                let bright = x < W / 2;
+                let (bg, sigma) = if bright { (150.0, 12.0) } else { (30.0, 3.0) };
+                let inside = (x as f64 - cx).hypot(y as f64 - cy) <= R;
+                for c in 0..3 {
+                    let z: f64 = Distribution::<f64>::sample(&StandardNormal, &mut rng);
+                    let v = if inside { 54.0 } else { bg } + sigma * z;
+                    img.set(c, y, x, (v / 255.0) as f32);
+                }
+            }
+        }
+        ColourFrame::new(&img)
+    }
+
+    #[test]
+    fn a_disc_over_a_dark_quiet_background_and_a_bright_noisy_one_is_placed_on_its_centre() {
+        // The disc moves down the border of the two halves; frame n's flow blob sits 3 px
+        // into the dark half.
+        let down = |n: usize| (W as f64 / 2.0, 10.0 + 1.5 * n as f64);
+        let (n, area) = (30, (std::f64::consts::PI * R * R) as usize);
+        let truth = down(n);
+        let error = |pixel_noise: bool| {
+            let cfg = PlaceConfig {
+                pixel_noise,
+                ..PlaceConfig::default()
+            };
+            let mut m = StillBackground::new(cfg).expect("valid settings");
+            for k in 0..n {
+                m.place(&halves(k, down, 5), 0.0, &[]);
+            }
+            let f = halves(n, down, 5);
+            // The foreground's centre, taken or (too far from the blob) only reported.
+            match &m.place(&f, 0.0, &[((truth.0 + 3.0, truth.1), area)])[0] {
+                Placement::Moved { to } | Placement::Far { to, .. } => {
+                    (to.0 - truth.0).hypot(to.1 - truth.1)
+                }
+                other => panic!("pixel noise {pixel_noise}: no centre: {other:?}"),
+            }
+        };
+        let (own, levels) = (error(true), error(false));
+        // In levels the bright half's difference outweighs the dark half's four to one, and
+        // the centre leans into the bright half; in each pixel's noise both halves count alike.
+        assert!(own < 1.5, "in the noise of each level: {own:.2} px off");
+        assert!(
+            levels > own + 1.5,
+            "in levels {levels:.2} px off, in noise {own:.2}"
         );
     }
 
@@ -616,6 +710,13 @@ mod tests {
                     ..Default::default()
                 },
                 "mask",
+            ),
+            (
+                PlaceConfig {
+                    noise_floor: 0.0,
+                    ..Default::default()
+                },
+                "noise_floor",
             ),
         ] {
             let e = StillBackground::new(cfg)
