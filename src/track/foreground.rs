@@ -67,7 +67,7 @@ impl<'a> Foreground<'a> {
             .collect();
         if let Some(floor) = noise_floor {
             let samples = grid.iter().flat_map(|&(x, y)| {
-                let at = fg.background_at(y * w + x);
+                let at = fg.background_at(y * w + x, true);
                 (0..current.channels).map(move |c| (c, at[c].0, at[c].1))
             });
             fg.noise = Some(NoiseLevel::fit(samples.collect::<Vec<_>>(), floor as f32));
@@ -83,9 +83,10 @@ impl<'a> Foreground<'a> {
     }
 
     /// Per channel (the first `channels`), the median of the stored frames' samples at pixel
-    /// `p` and the median absolute deviation about it, over the frames whose objects did not
-    /// cover it (over all of them where fewer than `MIN_UNCOVERED` did not).
-    fn background_at(&self, p: usize) -> [(f32, f32); 3] {
+    /// `p` and, with `spread`, the median absolute deviation about it (0 without), over the
+    /// frames whose objects did not cover it (over all of them where fewer than
+    /// `MIN_UNCOVERED` did not).
+    fn background_at(&self, p: usize, spread: bool) -> [(f32, f32); 3] {
         let w = self.current.width;
         let (x, y) = ((p % w) as f64, (p / w) as f64);
         let free = |i: usize| {
@@ -123,7 +124,14 @@ impl<'a> Foreground<'a> {
             } else {
                 (vals[n / 2 - 1] as f32 + vals[n / 2] as f32) / 2.0
             };
-            *o = (b, median_deviation(vals, b));
+            *o = (
+                b,
+                if spread {
+                    median_deviation(vals, b)
+                } else {
+                    0.0
+                },
+            );
         }
         out
     }
@@ -134,7 +142,7 @@ impl<'a> Foreground<'a> {
         if !cached.is_nan() {
             return cached;
         }
-        let at = self.background_at(p);
+        let at = self.background_at(p, false);
         let mut s = 0.0f32;
         for (c, &(b, _)) in at.iter().enumerate().take(self.current.channels) {
             let e = self.current.plane(c)[p] as f32 - b;
