@@ -2,13 +2,12 @@
 //! interest, measured on the frame): the per-pixel temporal median of the stored frames,
 //! leaving out in each the discs where its objects were (`PlaceConfig::mask`), each channel's
 //! difference from it in units of the camera's noise at that level (`track::noise_level`),
-//! and the mean shift that finds
-//! an object's centre (Eq. S17's centroid) on the weight above the frame's noise floor
-//! (Comaniciu & Meer 2002).
+//! and the mean shift that finds an object's centre (Eq. S17's centroid) on the weight above
+//! the frame's noise floor (Comaniciu & Meer 2002).
 
 use std::collections::VecDeque;
 
-use super::noise_level::NoiseLevel;
+use super::noise_level::{self, NoiseLevel};
 use super::still_background::{ColourFrame, PlaceConfig, Placement};
 
 /// Fewest frames a pixel's median leaves it uncovered in before the covered ones are left
@@ -277,13 +276,7 @@ fn median_deviation(samples: &[u8], b: f32) -> f32 {
     for (d, &v) in dev.iter_mut().zip(&samples[..n]) {
         *d = (v as f32 - b).abs();
     }
-    let dev = &mut dev[..n];
-    dev.sort_unstable_by(f32::total_cmp);
-    if n % 2 == 1 {
-        dev[n / 2]
-    } else {
-        (dev[n / 2 - 1] + dev[n / 2]) / 2.0
-    }
+    noise_level::median(&mut dev[..n])
 }
 
 fn median(v: &mut [f64]) -> f64 {

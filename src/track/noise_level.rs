@@ -64,7 +64,8 @@ fn bin(level: f32) -> usize {
     ((level / BIN).max(0.0) as usize).min(BINS - 1)
 }
 
-fn median(v: &mut [f32]) -> f32 {
+/// The median of `v` (not empty), the two middle values averaged for an even count.
+pub(super) fn median(v: &mut [f32]) -> f32 {
     v.sort_unstable_by(f32::total_cmp);
     let n = v.len();
     if n % 2 == 1 {

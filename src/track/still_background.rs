@@ -315,6 +315,16 @@ impl StillBackground {
         } else {
             // The foreground (its noise floor alone is a thousand medians) only for a frame
             // with a region to place.
+            let foreground = || {
+                Foreground::new(
+                    &self.frames,
+                    &self.covered,
+                    frame,
+                    cfg.window,
+                    cfg.k,
+                    cfg.noise(),
+                )
+            };
             let mut fg = None;
             regions
                 .iter()
@@ -322,16 +332,7 @@ impl StillBackground {
                 .map(|(i, &(c, area))| {
                     let mine = seeds.get(i).map_or(&[][..], Vec::as_slice);
                     if cfg.split > 0.0 && mine.len() >= 2 {
-                        let fg = fg.get_or_insert_with(|| {
-                            Foreground::new(
-                                &self.frames,
-                                &self.covered,
-                                frame,
-                                cfg.window,
-                                cfg.k,
-                                cfg.noise(),
-                            )
-                        });
+                        let fg = fg.get_or_insert_with(foreground);
                         if let Some(to) = fg.split(mine, cfg) {
                             return Placement::Split { to };
                         }
@@ -341,16 +342,7 @@ impl StillBackground {
                             "another region {d:.0} px away shares its foreground"
                         ));
                     }
-                    let fg = fg.get_or_insert_with(|| {
-                        Foreground::new(
-                            &self.frames,
-                            &self.covered,
-                            frame,
-                            cfg.window,
-                            cfg.k,
-                            cfg.noise(),
-                        )
-                    });
+                    let fg = fg.get_or_insert_with(foreground);
                     fg.place(c, area, cfg)
                 })
                 .collect()
