@@ -4,7 +4,7 @@
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 
 use pins::io::{self, BitDepth};
 
@@ -116,8 +116,19 @@ pub(crate) struct TrainArgs {
     #[arg(long, value_delimiter = ',', conflicts_with = "device")]
     devices: Option<Vec<String>>,
     /// Start from these weights (fine-tuning) instead of a random initialisation.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["resume", "continue_from"])]
     init: Option<PathBuf>,
+    /// Go on from a weights file of this run (last/best.safetensors, or an export of them) when
+    /// its checkpoint is gone: the run starts at the step the file's training stamp records, on
+    /// the same schedule and data order, with a short learning-rate warm-up (the config's
+    /// restart_warmup) while the optimiser's moments are rebuilt.
+    #[arg(long, conflicts_with = "resume")]
+    continue_from: Option<PathBuf>,
+    /// End this session before the step that would pass this much wall-clock time, with a
+    /// checkpoint (e.g. 2h30m, 90m, 45s); continue with --resume. SIGTERM and Ctrl-C end it the
+    /// same way at the next step (a second Ctrl-C stops at once).
+    #[arg(long, value_parser = parse_budget)]
+    time_budget: Option<std::time::Duration>,
     /// Stop after this many steps in this session (a checkpoint is written); continue later
     /// with --resume. The learning-rate schedule still spans the whole run.
     #[arg(long)]
@@ -207,6 +218,22 @@ pub(crate) struct EvalArgs {
     device: String,
 }
 
+fn parse_budget(text: &str) -> std::result::Result<std::time::Duration, String> {
+    pins::flow::train::budget::parse_duration(text).map_err(|e| e.to_string())
+}
+
+/// A flag that SIGTERM and Ctrl-C set, so that training ends at the next step with a
+/// checkpoint; a second signal while it is set ends the process at once.
+fn stop_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register_conditional_shutdown(sig, 1, stop.clone())
+            .context("installing the stop handler")?;
+        signal_hook::flag::register(sig, stop.clone()).context("installing the stop handler")?;
+    }
+    Ok(stop)
+}
+
 pub(crate) fn train(a: TrainArgs) -> Result<()> {
     use pins::flow::train::{TrainConfig, TrainOptions};
     let config = match &a.config {
@@ -240,6 +267,10 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         steps: a.steps,
         stop_after: a.stop_after,
         init: a.init,
+        continue_from: a.continue_from,
+        time_budget: a.time_budget,
+        stop: Some(stop_flag()?),
+        checkpoint_interval: pins::flow::train::budget::CHECKPOINT_INTERVAL,
         device,
         replicas,
         progress: !a.quiet && std::io::stderr().is_terminal(),
@@ -253,10 +284,18 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
             s.steps
         );
     }
+    if let Some(reason) = s.stopped {
+        println!(
+            "{}: stopped by {reason} after step {}, checkpoint written; continue with --resume",
+            a.out.display(),
+            s.steps
+        );
+    }
     println!(
-        "{}: {} steps, last loss {}, best validation EPE {}, {:.0} s of training",
+        "{}: {} steps ({} pairs seen), last loss {}, best validation EPE {}, {:.0} s of training",
         a.out.display(),
         s.steps,
+        s.pairs_seen,
         s.last_loss
             .map(|v| format!("{v:.4}"))
             .unwrap_or_else(|| "–".into()),
@@ -271,8 +310,12 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
 pub(crate) fn export(a: ExportArgs) -> Result<()> {
     let src = pins::flow::train::trainer::run_weights(&a.run)?;
     let device = burn::prelude::Device::flex();
-    let (model, config) = pins::flow::weights::load(&src, &device)?;
-    pins::flow::weights::save(&a.out, &model, &config)?;
+    let bytes = pins::io::read_bytes(&src)?;
+    let (model, config) = pins::flow::weights::from_bytes(&bytes, &src, &device)?;
+    // The training stamp goes with the weights, so that a run can continue from the export.
+    let stamp = pins::flow::train::stamp::TrainingStamp::read(&bytes, &src)?;
+    let extra = stamp.map(|s| s.entry()).transpose()?;
+    pins::flow::weights::save_with(&a.out, &model, &config, extra.as_slice())?;
     println!(
         "{} → {} ({}, {} parameters)",
         src.display(),

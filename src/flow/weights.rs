@@ -29,9 +29,18 @@ pub fn parameter_count<M: Module>(module: &M) -> usize {
 
 /// Serialises `model` and its config to safetensors bytes.
 pub fn to_bytes(model: &Mms, config: &MmsConfig) -> Result<Vec<u8>> {
+    to_bytes_with(model, config, &[])
+}
+
+/// Serialises `model`, its config and further metadata entries (key, text) to safetensors
+/// bytes, e.g. the training stamp of [`crate::flow::train::stamp`].
+pub fn to_bytes_with(model: &Mms, config: &MmsConfig, extra: &[(&str, String)]) -> Result<Vec<u8>> {
     let json =
         serde_json::to_string(config).map_err(|e| Error::invalid("model config", e.to_string()))?;
     let mut store = SafetensorsStore::from_bytes(None).metadata(CONFIG_KEY, json);
+    for (key, value) in extra {
+        store = store.metadata(*key, value.clone());
+    }
     model
         .save_into(&mut store)
         .map_err(|e| Error::invalid("weights", format!("cannot serialise: {e}")))?;
@@ -104,8 +113,33 @@ pub fn save(path: &Path, model: &Mms, config: &MmsConfig) -> Result<()> {
     io::write_bytes_atomic(path, &to_bytes(model, config)?)
 }
 
+/// Writes `model`, its config and further metadata entries to `path` atomically.
+pub fn save_with(
+    path: &Path,
+    model: &Mms,
+    config: &MmsConfig,
+    extra: &[(&str, String)],
+) -> Result<()> {
+    io::write_bytes_atomic(path, &to_bytes_with(model, config, extra)?)
+}
+
 /// The model config stored in a safetensors header.
 pub fn read_config(bytes: &[u8], what: &Path) -> Result<MmsConfig> {
+    let json = read_metadata(bytes, what, CONFIG_KEY)?.ok_or_else(|| {
+        Error::format(
+            what,
+            format!("not a pins weights file: no {CONFIG_KEY} in the metadata"),
+        )
+    })?;
+    let cfg: MmsConfig = serde_json::from_str(&json)
+        .map_err(|e| Error::format(what, format!("not a pins weights file: model config: {e}")))?;
+    cfg.validate()
+        .map_err(|e| Error::format(what, format!("model config: {e}")))?;
+    Ok(cfg)
+}
+
+/// The text stored under `key` in a safetensors header's metadata, if any.
+pub fn read_metadata(bytes: &[u8], what: &Path, key: &str) -> Result<Option<String>> {
     let bad = |r: String| Error::format(what, format!("not a pins weights file: {r}"));
     if bytes.len() < 8 {
         return Err(bad("shorter than a safetensors header".into()));
@@ -119,16 +153,11 @@ pub fn read_config(bytes: &[u8], what: &Path) -> Result<MmsConfig> {
     }
     let header: serde_json::Value =
         serde_json::from_slice(&bytes[8..8 + n]).map_err(|e| bad(format!("header JSON: {e}")))?;
-    let json = header
+    Ok(header
         .get("__metadata__")
-        .and_then(|m| m.get(CONFIG_KEY))
+        .and_then(|m| m.get(key))
         .and_then(|v| v.as_str())
-        .ok_or_else(|| bad(format!("no {CONFIG_KEY} in the metadata")))?;
-    let cfg: MmsConfig =
-        serde_json::from_str(json).map_err(|e| bad(format!("model config: {e}")))?;
-    cfg.validate()
-        .map_err(|e| Error::format(what, format!("model config: {e}")))?;
-    Ok(cfg)
+        .map(str::to_string))
 }
 
 /// Builds the network described by the bytes' config on `device` and loads its weights. Every

@@ -34,29 +34,38 @@ pub fn forward(g: &Geometry, x: &[f32], w: &[f32], bias: Option<&[f32]>) -> Vec<
     out
 }
 
+/// Contiguous groups the weight gradient's bands are summed in: a fixed number, so that the
+/// order of the additions (and so every bit of the gradient) is the same on any thread count.
+pub const GRAD_GROUPS: usize = 8;
+
 /// `∂L/∂W` `[Cout, Cin·kh·kw]` from the input `x` and the output gradient `grad`
-/// `[B, Cout, H', W']`: one partial sum per thread over bands of output rows, added at the end.
+/// `[B, Cout, H', W']`: the bands of output rows (image by image) cut into at most
+/// [`GRAD_GROUPS`] contiguous groups, each summed in order on one thread, then the groups'
+/// sums added in order. (A rayon fold/reduce would add in an order set by work stealing: the
+/// weights after a training step would differ from run to run and between thread counts.)
 pub fn weight_grad(g: &Geometry, x: &[f32], grad: &[f32]) -> Vec<f32> {
     let (k, cout) = (g.k(), g.cout);
     let (rows, bands_per_image) = bands(g);
-    (0..g.batch * bands_per_image)
+    let tasks = g.batch * bands_per_image;
+    let groups = GRAD_GROUPS.min(tasks).max(1);
+    let partials: Vec<Vec<f32>> = (0..groups)
         .into_par_iter()
-        .fold(
-            || vec![0f32; cout * k],
-            |mut acc, task| {
+        .map(|group| {
+            let mut acc = vec![0f32; cout * k];
+            for task in group * tasks / groups..(group + 1) * tasks / groups {
                 let (b, band) = (task / bands_per_image, task % bands_per_image);
                 let oy0 = band * rows;
                 band_weight_grad(g, x, grad, b, oy0, (oy0 + rows).min(g.ho), &mut acc);
-                acc
-            },
-        )
-        .reduce(
-            || vec![0f32; cout * k],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(u, v)| *u += v);
-                a
-            },
-        )
+            }
+            acc
+        })
+        .collect();
+    let mut partials = partials.into_iter();
+    let mut total = partials.next().unwrap_or_else(|| vec![0f32; cout * k]);
+    for p in partials {
+        total.iter_mut().zip(&p).for_each(|(u, v)| *u += v);
+    }
+    total
 }
 
 /// Rows per band and bands per image.

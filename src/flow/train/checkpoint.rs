@@ -32,6 +32,10 @@ pub struct CheckpointState {
     pub last_loss: Option<f64>,
     /// Wall-clock seconds of training so far, over all sessions.
     pub train_seconds: f64,
+    /// The step at which the run was warm-restarted from weights alone (`--continue-from`),
+    /// whose learning-rate warm-up a resume must repeat.
+    #[serde(default)]
+    pub restart_step: Option<usize>,
 }
 
 /// SHA-256 (hex) of a config's JSON, the key order being the struct's.

@@ -42,8 +42,12 @@ pub struct TrainConfig {
     pub val_max_pairs: usize,
     /// Iterations used when validating.
     pub val_iters: usize,
-    /// Write a checkpoint every this many steps (and at the end).
+    /// Write a checkpoint every this many steps (and at the end, and at least every ten
+    /// minutes: [`super::budget::CHECKPOINT_INTERVAL`]).
     pub checkpoint_every: usize,
+    /// Steps of learning-rate warm-up after a warm restart (`--continue-from`: the weights
+    /// without AdamW's moments), from 1/25 of the schedule's rate up to it.
+    pub restart_warmup: usize,
     /// Seed of the data order and augmentation; step s draws from (seed, s) alone.
     pub seed: u64,
     pub augment: AugmentConfig,
@@ -69,6 +73,7 @@ impl Default for TrainConfig {
             val_max_pairs: 16,
             val_iters: 12,
             checkpoint_every: 100,
+            restart_warmup: 100,
             seed: 0,
             augment: AugmentConfig::default(),
         }

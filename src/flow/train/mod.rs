@@ -1,5 +1,6 @@
 //! Training the MMS network (Note S11).
 
+pub mod budget;
 pub mod checkpoint;
 pub mod clip;
 pub mod config;
@@ -10,6 +11,7 @@ pub mod resume;
 pub mod save;
 pub mod schedule;
 pub mod setup;
+pub mod stamp;
 pub mod step;
 pub mod trainer;
 pub mod validate;

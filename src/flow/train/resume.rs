@@ -99,6 +99,8 @@ pub fn already_complete(state: &CheckpointState, model_config: &MmsConfig) -> Tr
         train_seconds: state.train_seconds,
         parameters: weights::parameter_count(&Mms::new(model_config, &Device::flex())),
         already_complete: true,
+        pairs_seen: (state.step * state.config.batch_size) as u64,
+        stopped: None,
     }
 }
 

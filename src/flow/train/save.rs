@@ -1,11 +1,13 @@
 //! Saving a run after a step: the checkpoint (network, optimiser, and the state with the
-//! config and data fingerprints that `--resume` checks), `last.safetensors` and the curves.
+//! config and data fingerprints that `--resume` checks), `last.safetensors` (with its training
+//! stamp, from which `--continue-from` goes on) and the curves.
 
 use burn::prelude::*;
 
 use super::checkpoint::{self, CheckpointState};
 use super::config::TrainConfig;
 use super::setup::{Run, record_error};
+use super::stamp::TrainingStamp;
 use super::trainer::TrainOptions;
 use crate::error::Result;
 use crate::flow::data::DataFingerprint;
@@ -42,12 +44,29 @@ pub fn save(
         best_val_epe: run.best_val,
         last_loss: run.last_loss,
         train_seconds: run.seconds,
+        restart_step: run.restart,
     };
     checkpoint::write(&opts.out, &state, &model_bytes, &optim_bytes)?;
-    weights::save(
+    weights::save_with(
         &opts.out.join("last.safetensors"),
         &run.model.valid(),
         model_config,
+        &[stamp(config, step, fingerprint)?.entry()?],
     )?;
     run.log.plot(&opts.out.join("curves.png"))
+}
+
+/// The training stamp of a run's weights after `step` steps on the data of `fingerprint`.
+pub fn stamp(
+    config: &TrainConfig,
+    step: usize,
+    fingerprint: &DataFingerprint,
+) -> Result<TrainingStamp> {
+    Ok(TrainingStamp {
+        step,
+        steps: config.steps,
+        pairs_seen: (step * config.batch_size) as u64,
+        config_sha256: checkpoint::config_sha256(config)?,
+        data: fingerprint.clone(),
+    })
 }

@@ -32,6 +32,16 @@ pub struct Run {
     pub last_loss: Option<f64>,
     pub log: TrainLog,
     pub parameters: usize,
+    /// The step of a warm restart (`--continue-from`), whose learning-rate warm-up the
+    /// schedule applies (kept by checkpoints, so a resumed run repeats it).
+    pub restart: Option<usize>,
+}
+
+/// Where a new run's schedule starts when it continues from a weights file alone: the
+/// stamp's step. (Its training time is not in the file: the ledger keeps the hours.)
+#[derive(Clone, Copy, Debug)]
+pub struct WarmRestart {
+    pub step: usize,
 }
 
 /// Fails early on images smaller than the crop.
@@ -56,12 +66,13 @@ pub fn check_crop(
     Ok(())
 }
 
-/// The network and optimiser of a new run, or of `existing` restored, starting at `start`; the
-/// run folder written.
+/// The network and optimiser of a new run (warm-restarted when `warm` is given), or of
+/// `existing` restored, starting at `start`; the run folder written.
 pub fn start(
     config: &TrainConfig,
     model_config: &MmsConfig,
     existing: Option<Loaded>,
+    warm: Option<WarmRestart>,
     start: usize,
     opts: &TrainOptions,
 ) -> Result<Run> {
@@ -72,6 +83,7 @@ pub fn start(
         .with_epsilon(config.epsilon as f32)
         .init();
     let (mut best_val, mut seconds, mut last_loss) = (None, 0.0, None);
+    let mut restart = warm.map(|w| w.step);
     if let Some((state, model_bytes, optim_bytes)) = existing {
         let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(model_bytes))
             .map_err(|e| record_error("checkpoint model", e))?;
@@ -84,6 +96,7 @@ pub fn start(
         best_val = state.best_val_epe;
         seconds = state.train_seconds;
         last_loss = state.last_loss;
+        restart = state.restart_step;
     }
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
     let run_json = serde_json::json!({"train": config, "model": model_config, "data": opts.data});
@@ -105,6 +118,7 @@ pub fn start(
         last_loss,
         log,
         parameters,
+        restart,
     })
 }
 
@@ -113,7 +127,8 @@ pub fn record_error(what: &str, e: impl std::fmt::Display) -> Error {
     Error::invalid(what, e.to_string())
 }
 
-/// The initial network: seeded, or the `--init` weights (not with `--resume`).
+/// The initial network: seeded, or the `--init` / `--continue-from` weights (not with
+/// `--resume`).
 fn network(
     config: &TrainConfig,
     model_config: &MmsConfig,
@@ -124,12 +139,20 @@ fn network(
     device.seed(rng::derive(config.seed, &[rng::purpose::TRAIN, u64::MAX]));
     // Ids from parameter paths, so that checkpoints of equal runs are equal files.
     let mut model = super::param_ids::ids_from_paths(Mms::new(model_config, device));
-    let Some(init) = &opts.init else {
-        return Ok(model);
+    let (flag, init) = match (&opts.init, &opts.continue_from) {
+        (Some(p), None) => ("--init", p),
+        (None, Some(p)) => ("--continue-from", p),
+        (None, None) => return Ok(model),
+        (Some(_), Some(_)) => {
+            return Err(Error::invalid(
+                "--init",
+                "cannot be combined with --continue-from (both name the starting weights)",
+            ));
+        }
     };
     if opts.resume {
         return Err(Error::invalid(
-            "--init",
+            flag,
             "cannot be combined with --resume (the checkpoint already holds the weights)",
         ));
     }
@@ -137,7 +160,7 @@ fn network(
     let stored = weights::read_config(&bytes, init)?;
     if stored != *model_config {
         return Err(Error::invalid(
-            "--init",
+            flag,
             format!(
                 "{} holds a {} network, but the run trains {}",
                 init.display(),

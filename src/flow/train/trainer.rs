@@ -1,27 +1,36 @@
 //! `pins train`: the MMS network on a generated dataset with the sequence loss of Eq. S16,
 //! AdamW, the one-cycle schedule and global gradient clipping; held-out validation on a
 //! schedule; atomic checkpoints from which `--resume` continues exactly (same step, optimiser
-//! state, schedule and data order); a CSV log and a PNG plot of the curves.
+//! state, schedule and data order); a CSV log and a PNG plot of the curves. A session ends at
+//! its last step, at `--stop-after`, before the step that would pass `--time-budget`, or at the
+//! step after a stop request (SIGTERM), each time with a checkpoint; one is written at least
+//! every ten minutes besides. `--continue-from` goes on from a weights file's training stamp
+//! when the checkpoint is gone (a warm restart, [`super::stamp`]).
 //!
 //! This file is the loop; its parts are [`super::resume`] (the run's config and the checks
 //! against a checkpoint), [`super::setup`] (network, optimiser, run folder), [`super::step`],
 //! [`super::validate`], [`super::save`] (checkpoints) and [`super::log`].
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
 
 use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use super::budget::{Budget, StopReason};
 use super::checkpoint;
 use super::config::TrainConfig;
 use super::log::LogRow;
 use super::prefetch::Prefetch;
 use super::schedule::one_cycle;
+use super::setup::WarmRestart;
+use super::stamp::{TrainingStamp, restart_factor};
 use super::{resume, save, setup, step, validate};
 use crate::error::{Error, Result};
-use crate::flow::data::FlowDataset;
+use crate::flow::data::{DataFingerprint, FlowDataset};
 
 /// Where and how to run.
 #[derive(Clone, Debug)]
@@ -43,6 +52,16 @@ pub struct TrainOptions {
     pub replicas: Vec<Device>,
     /// Start a new run from these weights (fine-tuning) instead of a random initialisation.
     pub init: Option<PathBuf>,
+    /// Start a new run where these weights' run stood (their training stamp: same config,
+    /// same schedule and data order), with a learning-rate warm-up: a warm restart when the
+    /// checkpoint is gone.
+    pub continue_from: Option<PathBuf>,
+    /// End the session (with a checkpoint) before the step that would pass this much time.
+    pub time_budget: Option<Duration>,
+    /// Set by a signal handler: end the session (with a checkpoint) before the next step.
+    pub stop: Option<Arc<AtomicBool>>,
+    /// Write a checkpoint when this much time has passed since the last one.
+    pub checkpoint_interval: Duration,
 }
 
 /// What a run ended with.
@@ -56,16 +75,25 @@ pub struct TrainSummary {
     pub parameters: usize,
     /// The run had already taken all its steps: nothing was trained in this call.
     pub already_complete: bool,
+    /// Training pairs seen over the whole run (steps × batch).
+    pub pairs_seen: u64,
+    /// Why the session ended before the run's last step and `--stop-after`, if it did.
+    pub stopped: Option<StopReason>,
 }
 
 /// Trains (or resumes) a run. `config` is the run's config: required to be equal to the stored
 /// one when resuming (`None` then means "the stored one"), the defaults when `None` on a new run.
 pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSummary> {
+    let budget = Budget::new(opts.time_budget, opts.stop.clone());
     let existing = checkpoint::read(&opts.out)?;
-    let (config, start) = resume::run_config(config, existing.as_ref().map(|e| &e.0), opts)?;
+    let (config, mut start) = resume::run_config(config, existing.as_ref().map(|e| &e.0), opts)?;
     let model_config = config.model_config()?;
     let dataset = FlowDataset::open(&opts.data)?;
     let fingerprint = dataset.fingerprint()?;
+    let warm = warm_restart(&config, &fingerprint, opts)?;
+    if let Some(w) = warm {
+        start = w.step;
+    }
     if let Some((state, _, _)) = &existing {
         resume::refuse_other_data(state, &fingerprint, opts)?;
         if start >= config.steps {
@@ -75,7 +103,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     dataset.check_has_known_flow()?;
     let (train_set, val_set) = dataset.split(config.val_fraction);
     setup::check_crop(&train_set, &config, opts)?;
-    let mut run = setup::start(&config, &model_config, existing, start, opts)?;
+    let mut run = setup::start(&config, &model_config, existing, warm, start, opts)?;
 
     let devices: Vec<Device> = std::iter::once(run.device.clone())
         .chain(opts.replicas.iter().map(|d| d.clone().autodiff()))
@@ -97,9 +125,17 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         .stop_after
         .map_or(config.steps, |n| (start + n).min(config.steps));
     let mut batches = Prefetch::new(&config, &train_set, step, stop, Prefetch::default_depth());
+    let (mut saved_at, mut last_save) = (step, Instant::now());
+    let mut last_step = Duration::ZERO;
+    let mut stopped = None;
     while step < stop {
+        if let Some(reason) = budget.should_stop(last_step) {
+            stopped = Some(reason);
+            break;
+        }
         let t0 = Instant::now();
-        let lr = one_cycle(step, config.steps, config.lr, config.pct_start);
+        let lr = one_cycle(step, config.steps, config.lr, config.pct_start)
+            * restart_factor(step, run.restart, config.restart_warmup);
         let examples = batches.take(step)?;
         let (model, stats) = match step::take_parallel(
             run.model,
@@ -120,7 +156,8 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         run.model = model;
         step += 1;
         run.last_loss = Some(stats.loss as f64);
-        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        last_step = t0.elapsed();
+        let ms = last_step.as_secs_f64() * 1e3;
         run.seconds += ms / 1e3;
 
         let mut row = LogRow {
@@ -134,6 +171,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             val_px1: None,
         };
         if step % config.val_every == 0 || step == config.steps {
+            let stamp = save::stamp(&config, step, &fingerprint)?;
             let scores = validate::validate(
                 &run.model,
                 &model_config,
@@ -141,6 +179,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
                 &config,
                 opts,
                 &mut run.best_val,
+                &stamp,
             )?;
             row.val_epe = Some(scores.epe);
             row.val_px1 = Some(scores.px1);
@@ -155,9 +194,17 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
                 .unwrap_or_default()
         ));
         bar.set_position(step as u64);
-        if step % config.checkpoint_every == 0 || step == config.steps || step == stop {
+        if step % config.checkpoint_every == 0
+            || step == config.steps
+            || step == stop
+            || last_save.elapsed() >= opts.checkpoint_interval
+        {
             save::save(&run, &config, &model_config, step, &fingerprint, opts)?;
+            (saved_at, last_save) = (step, Instant::now());
         }
+    }
+    if saved_at != step || !checkpoint::dir(&opts.out).join("state.json").is_file() {
+        save::save(&run, &config, &model_config, step, &fingerprint, opts)?;
     }
     bar.finish_and_clear();
     Ok(TrainSummary {
@@ -167,7 +214,41 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         train_seconds: run.seconds,
         parameters: run.parameters,
         already_complete: false,
+        pairs_seen: (step * config.batch_size) as u64,
+        stopped,
     })
+}
+
+/// The warm restart `opts.continue_from` asks for: the step its stamp stands at (the weights
+/// must come from this config and these data).
+fn warm_restart(
+    config: &TrainConfig,
+    fingerprint: &DataFingerprint,
+    opts: &TrainOptions,
+) -> Result<Option<WarmRestart>> {
+    let Some(path) = &opts.continue_from else {
+        return Ok(None);
+    };
+    if opts.resume || opts.init.is_some() {
+        return Err(Error::invalid(
+            "--continue-from",
+            "cannot be combined with --resume or --init (each names where the run starts)",
+        ));
+    }
+    let bytes = crate::io::read_bytes(path)?;
+    let stamp = TrainingStamp::read(&bytes, path)?.ok_or_else(|| {
+        Error::invalid(
+            "--continue-from",
+            format!(
+                "{} carries no training stamp (it was not written by this version of pins \
+                 train): use --init to fine-tune from it",
+                path.display()
+            ),
+        )
+    })?;
+    Ok(Some(WarmRestart {
+        step: stamp.restart_step(config, fingerprint, path)?,
+    }))
 }
 
 /// The progress bar of a run of `steps` steps from `start` (hidden unless `shown`).

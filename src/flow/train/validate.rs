@@ -5,6 +5,7 @@
 use burn::prelude::*;
 
 use super::config::TrainConfig;
+use super::stamp::TrainingStamp;
 use super::trainer::TrainOptions;
 use crate::error::Result;
 use crate::flow::data::FlowDataset;
@@ -14,7 +15,7 @@ use crate::flow::model::{Mms, MmsConfig};
 use crate::flow::weights;
 
 /// The scores of `model` on `val_set`; `best` (the lowest EPE so far) updated, and the
-/// weights saved, when they are the best yet.
+/// weights saved with their training stamp, when they are the best yet.
 pub fn validate(
     model: &Mms,
     model_config: &MmsConfig,
@@ -22,6 +23,7 @@ pub fn validate(
     config: &TrainConfig,
     opts: &TrainOptions,
     best: &mut Option<f64>,
+    stamp: &TrainingStamp,
 ) -> Result<FlowScores> {
     let valid_model = model.valid();
     let scores = evaluate_dataset(
@@ -34,10 +36,11 @@ pub fn validate(
     )?;
     if best.is_none_or(|b| scores.epe < b) {
         *best = Some(scores.epe);
-        weights::save(
+        weights::save_with(
             &opts.out.join("best.safetensors"),
             &valid_model,
             model_config,
+            &[stamp.entry()?],
         )?;
     }
     Ok(scores)

@@ -1,0 +1,168 @@
+#!/usr/bin/env bash
+# The training campaign of the MMS network: one long run (experiments/campaign/train.json) on
+# the campaign's data (experiments/campaign/data/*.json, generated here, deterministic),
+# continued a session at a time, on the CPU in the background or on a GPU machine.
+#
+#   scripts/train_campaign.sh [run] [BUDGET]       continue on this machine's CPU, niced (BUDGET
+#                                                  as pins train --time-budget; default 2h)
+#   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) for MINUTES
+#                                                  (at most 9) and copy the checkpoint, weights,
+#                                                  log and pairs/s to OUTDIR (files < 16 MiB)
+#   scripts/train_campaign.sh status               where the campaign stands
+#
+# Where a session starts, in order: the run folder's checkpoint ($WORK/run, --resume: exactly
+# where it stopped); else a checkpoint folder brought from elsewhere (CHECKPOINT=DIR holding
+# state.json, model-*.bpk, optim-*.bin, log.csv); else the campaign's last committed weights
+# (experiments/campaign/weights.safetensors, --continue-from: the step its training stamp
+# records, a learning-rate warm-up); else the shipped mms-small-real weights at step 0 (--init).
+# A session ends at its budget, on SIGTERM or Ctrl-C with a checkpoint; a kill loses at most
+# ten minutes. After a session, `status` prints the step, the pairs seen and the hours.
+#
+# Environment: PINS (a pins binary; default: built here with cargo), WORK (default
+# out/campaign: data, mix and run), CAMPAIGN (default experiments/campaign), DEVICE (gpu mode,
+# default wgpu), NEW_SCHEDULE=1 (start a new schedule from the campaign's weights with --init
+# after its config changed).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+CAMPAIGN=${CAMPAIGN:-experiments/campaign}
+WORK=${WORK:-out/campaign}
+RUN=$WORK/run
+MIX=$WORK/mix
+CONFIG=$CAMPAIGN/train.json
+WEIGHTS=$CAMPAIGN/weights.safetensors
+START=datasets/weights/mms-small-real.safetensors
+
+die() { echo "train_campaign: $*" >&2; exit 1; }
+mode=${1:-run}
+case "$mode" in
+    run | gpu | status) shift || true ;;
+    *) mode=run ;;
+esac
+
+[ -d "$CAMPAIGN" ] || die "no campaign folder $CAMPAIGN"
+[ -f "$CONFIG" ] || die "the campaign folder $CAMPAIGN has no train.json"
+shopt -s nullglob
+sets=("$CAMPAIGN"/data/*.json)
+[ "${#sets[@]}" -gt 0 ] || die "the campaign folder $CAMPAIGN has no data/*.json"
+
+if [ -z "${PINS:-}" ]; then
+    cargo build --release --locked --quiet
+    PINS="$(cargo metadata --format-version 1 --no-deps |
+        python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/release/pins"
+fi
+[ -x "$PINS" ] || die "no pins binary at $PINS"
+
+# Where the campaign stands: the checkpoint's step, pairs seen and hours, the last validation.
+status() {
+    python3 - "$RUN" "$WEIGHTS" "$CONFIG" <<'PY'
+import csv, json, os, struct, sys
+run, weights, config = sys.argv[1:4]
+batch = json.load(open(config))["batch_size"]
+state = os.path.join(run, "checkpoint", "state.json")
+if os.path.isfile(state):
+    s = json.load(open(state))
+    print(f"checkpoint {state}: step {s['step']} of {s['config']['steps']}, "
+          f"{s['step'] * s['config']['batch_size']} pairs seen, {s['train_seconds'] / 3600:.2f} h of training, "
+          f"best validation EPE {s.get('best_val_epe')}")
+else:
+    print(f"no checkpoint in {run}")
+if os.path.isfile(weights):
+    b = open(weights, "rb").read()
+    n = struct.unpack("<Q", b[:8])[0]
+    meta = json.loads(b[8:8 + n]).get("__metadata__", {})
+    st = json.loads(meta.get("pins.training", "null") or "null")
+    if st:
+        print(f"committed weights {weights}: step {st['step']} of {st['steps']}, "
+              f"{st['pairs_seen']} pairs seen")
+log = os.path.join(run, "log.csv")
+if os.path.isfile(log):
+    rows = list(csv.DictReader(open(log)))
+    val = [r for r in rows if r.get("val_epe")]
+    if rows:
+        last = rows[-1]
+        print(f"last step {last['step']}: loss {float(last['loss']):.3f}, "
+              f"{float(last['ms_per_step']):.0f} ms per step "
+              f"({batch / float(last['ms_per_step']) * 1e3:.2f} pairs/s)")
+    if val:
+        print(f"last validation (step {val[-1]['step']}): EPE {float(val[-1]['val_epe']):.3f}, "
+              f"1 px {float(val[-1]['val_px1']):.3f}")
+PY
+}
+if [ "$mode" = status ]; then
+    status
+    exit 0
+fi
+
+# The data: each set generated (a rerun redoes only what is missing or damaged), then the sets
+# interleaved into one folder by hard links, so that the validation split (the last pairs)
+# samples every set.
+mkdir -p "$WORK/data"
+names=()
+for cfg in "${sets[@]}"; do
+    name=$(basename "$cfg" .json)
+    names+=("$name")
+    "$PINS" generate --quiet --config "$cfg" --out "$WORK/data/$name" ||
+        die "generating $cfg into $WORK/data/$name failed"
+done
+rm -rf "$MIX.tmp"
+mkdir -p "$MIX.tmp"
+for name in "${names[@]}"; do
+    n=$(find "$WORK/data/$name" -maxdepth 1 -name '*_flow.flo' | wc -l)
+    [ "$n" -gt 0 ] || die "$WORK/data/$name holds no pairs"
+    awk -v n="$n" -v s="$name" 'BEGIN { for (i = 0; i < n; i++) printf "%.9f %s %05d\n", (i + 0.5) / n, s, i }'
+done | sort -k1,1g -k2,2 | awk '{ printf "%s %s %05d\n", $2, $3, NR - 1 }' |
+    while read -r name i k; do
+        for f in img1.png img2.png flow.flo; do
+            ln "$WORK/data/$name/${i}_$f" "$MIX.tmp/${k}_$f"
+        done
+    done
+rm -rf "$MIX"
+mv "$MIX.tmp" "$MIX"
+echo "data: $(find "$MIX" -name '*_flow.flo' | wc -l) pairs in $MIX (${names[*]})"
+
+# Where this session starts.
+start=()
+if [ -f "$RUN/checkpoint/state.json" ]; then
+    start=(--resume)
+elif [ -n "${CHECKPOINT:-}" ]; then
+    [ -f "$CHECKPOINT/state.json" ] || die "CHECKPOINT=$CHECKPOINT holds no state.json"
+    mkdir -p "$RUN/checkpoint.tmp"
+    cp "$CHECKPOINT"/state.json "$CHECKPOINT"/model-*.bpk "$CHECKPOINT"/optim-*.bin "$RUN/checkpoint.tmp/" ||
+        die "CHECKPOINT=$CHECKPOINT lacks its model-*.bpk or optim-*.bin"
+    [ -f "$CHECKPOINT/log.csv" ] && cp "$CHECKPOINT/log.csv" "$RUN/log.csv"
+    mv "$RUN/checkpoint.tmp" "$RUN/checkpoint"
+    start=(--resume)
+elif [ -f "$WEIGHTS" ] && [ -z "${NEW_SCHEDULE:-}" ]; then
+    start=(--continue-from "$WEIGHTS")
+elif [ -f "$WEIGHTS" ]; then
+    start=(--init "$WEIGHTS")
+else
+    start=(--init "$START")
+fi
+echo "starting: ${start[*]}"
+
+if [ "$mode" = run ]; then
+    budget=${1:-2h}
+    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" \
+        "${start[@]}" --time-budget "$budget"
+    status
+    exit 0
+fi
+
+# gpu MINUTES OUTDIR
+minutes=${1:?usage: train_campaign.sh gpu MINUTES OUTDIR}
+outdir=${2:?usage: train_campaign.sh gpu MINUTES OUTDIR}
+[ "$minutes" -ge 1 ] && [ "$minutes" -le 9 ] || die "MINUTES must be in 1..9, got $minutes"
+mkdir -p "$outdir"
+t0=$(date +%s)
+"$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" --device "${DEVICE:-wgpu}" \
+    "${start[@]}" --time-budget "${minutes}m"
+echo "trained for $(($(date +%s) - t0)) s on ${DEVICE:-wgpu}"
+status | tee "$outdir/status.txt"
+state="$RUN/checkpoint/state.json"
+[ -f "$state" ] || die "the run wrote no checkpoint"
+model=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["model_file"])' "$state")
+optim=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["optimizer_file"])' "$state")
+cp "$state" "$RUN/checkpoint/$model" "$RUN/checkpoint/$optim" "$RUN/log.csv" "$RUN/last.safetensors" "$outdir/"
+[ -f "$RUN/best.safetensors" ] && cp "$RUN/best.safetensors" "$outdir/"
+ls -l "$outdir"

@@ -1,0 +1,186 @@
+//! The training stamp a run writes into its weights files (Note S11 training as a campaign):
+//! where in its schedule the weights stand (step of steps, pairs seen) and the hashes of the
+//! config and data that made them (no wall-clock time: equal runs write equal files), so that a run can go on from a weights file alone — a warm
+//! restart, when the full checkpoint (optimiser state) is gone — on the same schedule, after a
+//! short learning-rate warm-up while AdamW's moments are rebuilt.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::config::TrainConfig;
+use crate::error::{Error, Result};
+use crate::flow::data::DataFingerprint;
+use crate::flow::weights;
+
+/// Metadata key of the stamp in a weights file.
+pub const STAMP_KEY: &str = "pins.training";
+
+/// Where a weights file stands in the run that made it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainingStamp {
+    /// Steps taken.
+    pub step: usize,
+    /// Steps the run's schedule spans.
+    pub steps: usize,
+    /// Training pairs seen (steps × batch).
+    pub pairs_seen: u64,
+    /// SHA-256 of the run's config JSON ([`super::checkpoint::config_sha256`]).
+    pub config_sha256: String,
+    /// The training data's fingerprint (pairs, and a hash of their names and sizes).
+    pub data: DataFingerprint,
+}
+
+impl TrainingStamp {
+    /// The stamp as a metadata entry.
+    pub fn entry(&self) -> Result<(&'static str, String)> {
+        let text = serde_json::to_string(self)
+            .map_err(|e| Error::invalid("training stamp", e.to_string()))?;
+        Ok((STAMP_KEY, text))
+    }
+
+    /// The stamp of a weights file's bytes, if it has one.
+    pub fn read(bytes: &[u8], what: &Path) -> Result<Option<Self>> {
+        let Some(text) = weights::read_metadata(bytes, what, STAMP_KEY)? else {
+            return Ok(None);
+        };
+        serde_json::from_str(&text)
+            .map(Some)
+            .map_err(|e| Error::format(what, format!("{STAMP_KEY}: {e}")))
+    }
+
+    /// The step a warm restart of `config` on `data` from these weights starts at: the
+    /// stamp's, when the weights were made by this very config on the same data and have
+    /// steps left; otherwise an error that names what differs.
+    pub fn restart_step(
+        &self,
+        config: &TrainConfig,
+        data: &DataFingerprint,
+        what: &Path,
+    ) -> Result<usize> {
+        let sha = super::checkpoint::config_sha256(config)?;
+        if sha != self.config_sha256 {
+            return Err(Error::invalid(
+                "--continue-from",
+                format!(
+                    "{} was trained with another config (hash {}) than this run's (hash {}): \
+                     a warm restart continues the same schedule; use --init to fine-tune \
+                     from it on a new one",
+                    what.display(),
+                    short(&self.config_sha256),
+                    short(&sha)
+                ),
+            ));
+        }
+        if *data != self.data {
+            return Err(Error::invalid(
+                "--continue-from",
+                format!(
+                    "{} was trained on other data ({} pairs, fingerprint {}) than --data \
+                     holds ({} pairs, fingerprint {}): a warm restart continues the same run; \
+                     use --init to fine-tune from it on new data",
+                    what.display(),
+                    self.data.pairs,
+                    short(&self.data.sha256),
+                    data.pairs,
+                    short(&data.sha256)
+                ),
+            ));
+        }
+        if self.step >= config.steps {
+            return Err(Error::invalid(
+                "--continue-from",
+                format!(
+                    "{} is the end of its run ({} of {} steps): nothing is left to continue",
+                    what.display(),
+                    self.step,
+                    config.steps
+                ),
+            ));
+        }
+        Ok(self.step)
+    }
+}
+
+/// The learning-rate factor `warmup` steps after a warm restart at step `restart`: from 1/25
+/// (the one-cycle schedule's own starting fraction) up to 1, linearly; 1 when the run did not
+/// restart or the warm-up is over.
+pub fn restart_factor(step: usize, restart: Option<usize>, warmup: usize) -> f64 {
+    match restart {
+        Some(r) if warmup > 0 && step >= r && step - r < warmup => {
+            let t = (step - r) as f64 / warmup as f64;
+            1.0 / 25.0 + (1.0 - 1.0 / 25.0) * t
+        }
+        _ => 1.0,
+    }
+}
+
+fn short(sha: &str) -> &str {
+    &sha[..12.min(sha.len())]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_warm_up_after_a_restart_rises_from_a_25th_to_the_schedule() {
+        assert_eq!(restart_factor(500, None, 100), 1.0);
+        assert!((restart_factor(500, Some(500), 100) - 0.04).abs() < 1e-12);
+        assert!((restart_factor(550, Some(500), 100) - 0.52).abs() < 1e-12);
+        assert_eq!(restart_factor(600, Some(500), 100), 1.0);
+        assert_eq!(restart_factor(500, Some(500), 0), 1.0);
+    }
+
+    #[test]
+    fn a_restart_needs_the_same_config_and_steps_left() {
+        let config = TrainConfig::default();
+        let stamp = TrainingStamp {
+            step: 700,
+            steps: config.steps,
+            pairs_seen: 2800,
+            config_sha256: super::super::checkpoint::config_sha256(&config).unwrap(),
+            data: DataFingerprint {
+                pairs: 10,
+                sha256: "ab".repeat(32),
+            },
+        };
+        let data = stamp.data.clone();
+        let p = Path::new("w.safetensors");
+        assert_eq!(stamp.restart_step(&config, &data, p).unwrap(), 700);
+        let other_data = DataFingerprint {
+            pairs: 11,
+            ..data.clone()
+        };
+        let err = stamp
+            .restart_step(&config, &other_data, p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("other data") && err.contains("11 pairs"),
+            "{err}"
+        );
+        let other = TrainConfig {
+            lr: 1e-3,
+            ..config.clone()
+        };
+        let err = stamp
+            .restart_step(&other, &data, p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("another config") && err.contains("--init"),
+            "{err}"
+        );
+        let done = TrainingStamp {
+            step: config.steps,
+            ..stamp
+        };
+        let err = done
+            .restart_step(&config, &data, p)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("nothing is left"), "{err}");
+    }
+}

@@ -1,0 +1,326 @@
+//! Training as a campaign (Note S11): identical runs are byte-identical at any thread count; a
+//! session ends at its time budget or on SIGTERM with a checkpoint from which `--resume`
+//! continues exactly; `--continue-from` goes on from a weights file's training stamp when the
+//! checkpoint is gone; bad input is named.
+
+mod common;
+use common::{failed, ok, pins, pins_with_threads};
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+fn config(dir: &Path, steps: usize, batch: usize) -> PathBuf {
+    let p = dir.join(format!("train_{steps}_{batch}.json"));
+    fs::write(
+        &p,
+        format!(
+            r#"{{"model": "mms-small", "steps": {steps}, "batch_size": {batch}, "crop": [64, 64],
+                "iters": 2, "val_fraction": 0.25, "val_every": 2, "val_max_pairs": 1,
+                "val_iters": 2, "checkpoint_every": 1000, "restart_warmup": 2}}"#
+        ),
+    )
+    .unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The log's rows as (step, lr, loss) text.
+fn rows(run: &Path) -> Vec<String> {
+    fs::read_to_string(run.join("log.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').take(3).collect::<Vec<_>>().join(","))
+        .collect()
+}
+
+fn state_step(run: &Path) -> u64 {
+    let text = fs::read_to_string(run.join("checkpoint/state.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["step"].as_u64().unwrap()
+}
+
+#[test]
+fn identical_runs_are_byte_identical_at_one_and_two_threads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = common::tiny_dataset(tmp.path(), "data", 6, 5);
+    let cfg = config(tmp.path(), 3, 2);
+    let mut files = Vec::new();
+    for (i, threads) in [1, 2, 2].into_iter().enumerate() {
+        let run = tmp.path().join(format!("run{i}"));
+        ok(&pins_with_threads(
+            &[
+                "train",
+                "--config",
+                s(&cfg),
+                "--data",
+                s(&data),
+                "--out",
+                s(&run),
+                "--quiet",
+            ],
+            Some(threads),
+        ));
+        files.push((threads, fs::read(run.join("last.safetensors")).unwrap()));
+    }
+    for (threads, bytes) in &files[1..] {
+        assert!(
+            *bytes == files[0].1,
+            "the weights after 3 steps on {threads} threads differ from those on 1 thread"
+        );
+    }
+}
+
+#[test]
+fn a_time_budget_ends_the_session_with_a_checkpoint_and_resume_continues_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = common::tiny_dataset(tmp.path(), "data", 4, 3);
+    let cfg = config(tmp.path(), 100_000, 1);
+    let straight = tmp.path().join("straight");
+    let args = |run: &Path| {
+        vec![
+            "train".to_string(),
+            "--config".into(),
+            s(&cfg).into(),
+            "--data".into(),
+            s(&data).into(),
+            "--out".into(),
+            s(run).into(),
+            "--quiet".into(),
+        ]
+    };
+    let run_with = |run: &Path, extra: &[&str]| {
+        let mut a = args(run);
+        a.extend(extra.iter().map(|x| x.to_string()));
+        pins(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    // A budget of one second ends the session before the step that would pass it, however
+    // fast this machine is (the run has 100 000 steps): a checkpoint at the last step taken.
+    let budgeted = tmp.path().join("budgeted");
+    let out = ok(&run_with(&budgeted, &["--time-budget", "1s"]));
+    assert!(out.contains("stopped by its time budget"), "{out}");
+    let taken = rows_or_empty(&budgeted).len();
+    assert_eq!(state_step(&budgeted), taken as u64);
+    // Resumed for two more steps, it equals a run that took them all at once.
+    ok(&run_with(&budgeted, &["--resume", "--stop-after", "2"]));
+    let all = (taken + 2).to_string();
+    ok(&run_with(&straight, &["--stop-after", &all]));
+    assert_eq!(rows(&straight), rows(&budgeted));
+    assert!(
+        fs::read(straight.join("last.safetensors")).unwrap()
+            == fs::read(budgeted.join("last.safetensors")).unwrap(),
+        "a run stopped by its budget and resumed must end with the same weights"
+    );
+    let err = failed(&run_with(&tmp.path().join("bad"), &["--time-budget", "5x"]));
+    assert!(err.contains("--time-budget") && err.contains("5x"), "{err}");
+    assert!(
+        !tmp.path().join("bad").exists(),
+        "a refused run leaves no folder"
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_ends_the_session_at_the_next_step_with_a_checkpoint() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let data = common::tiny_dataset(tmp.path(), "data", 4, 3);
+    let cfg = config(tmp.path(), 100_000, 1);
+    let run = tmp.path().join("run");
+    let child = Command::new(env!("CARGO_BIN_EXE_pins"))
+        .args([
+            "train",
+            "--config",
+            s(&cfg),
+            "--data",
+            s(&data),
+            "--out",
+            s(&run),
+            "--quiet",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for a logged step (the handler is installed before the first one).
+    let t0 = Instant::now();
+    while rows_or_empty(&run).is_empty() {
+        assert!(t0.elapsed() < Duration::from_secs(600), "no step logged");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "exit {:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("stopped by a stop request"), "{stdout}");
+    let taken = rows(&run).len() as u64;
+    assert!(taken < 100_000);
+    assert_eq!(
+        state_step(&run),
+        taken,
+        "the checkpoint is the last step taken"
+    );
+}
+
+/// The step of a weights file's training stamp.
+fn stamp_step(weights: &Path) -> usize {
+    let bytes = fs::read(weights).unwrap();
+    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + n]).unwrap();
+    let stamp = header["__metadata__"]["pins.training"].as_str().unwrap();
+    let stamp: serde_json::Value = serde_json::from_str(stamp).unwrap();
+    stamp["step"].as_u64().unwrap() as usize
+}
+
+fn rows_or_empty(run: &Path) -> Vec<String> {
+    if run.join("log.csv").is_file() {
+        rows(run)
+    } else {
+        Vec::new()
+    }
+}
+
+#[test]
+fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = common::tiny_dataset(tmp.path(), "data", 4, 3);
+    let cfg = config(tmp.path(), 6, 1);
+    let first = tmp.path().join("first");
+    ok(&pins(&[
+        "train",
+        "--config",
+        s(&cfg),
+        "--data",
+        s(&data),
+        "--out",
+        s(&first),
+        "--stop-after",
+        "3",
+        "--quiet",
+    ]));
+    // The exported weights keep the stamp: the checkpoint is gone, the export is all there is.
+    let exported = tmp.path().join("w.safetensors");
+    ok(&pins(&[
+        "export",
+        "--run",
+        s(&first),
+        "--out",
+        s(&exported),
+    ]));
+    fs::remove_dir_all(&first).unwrap();
+    let second = tmp.path().join("second");
+    let out = ok(&pins(&[
+        "train",
+        "--config",
+        s(&cfg),
+        "--data",
+        s(&data),
+        "--out",
+        s(&second),
+        "--continue-from",
+        s(&exported),
+        "--quiet",
+    ]));
+    assert!(out.contains("6 steps (6 pairs seen)"), "{out}");
+    // The export is the run's best weights (validated at step 2): the run goes on from there.
+    let at = stamp_step(&exported);
+    assert_eq!(at, 2);
+    let steps: Vec<usize> = rows(&second)
+        .iter()
+        .map(|r| r.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(
+        steps,
+        (at + 1..=6).collect::<Vec<_>>(),
+        "the run goes on after step {at}"
+    );
+    // The schedule's rate at step 4, from an uninterrupted run, against the warm-up's.
+    let straight = tmp.path().join("straight");
+    ok(&pins(&[
+        "train",
+        "--config",
+        s(&cfg),
+        "--data",
+        s(&data),
+        "--out",
+        s(&straight),
+        "--quiet",
+    ]));
+    let lr = |run: &Path, step: usize| -> f64 {
+        rows(run)[step - 1]
+            .split(',')
+            .nth(1)
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let lr_after = |step: usize| -> f64 {
+        rows(&second)[step - at - 1]
+            .split(',')
+            .nth(1)
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    // A warm-up of 2 steps from a 25th of the schedule's rate; the log writes 7 digits.
+    assert!((lr_after(3) / (lr(&straight, 3) / 25.0) - 1.0).abs() < 1e-5);
+    assert!(lr_after(4) > lr_after(3) && lr_after(4) < lr(&straight, 4));
+    for step in 5..=6 {
+        assert_eq!(lr_after(step), lr(&straight, step), "the warm-up is over");
+    }
+
+    // A changed config, weights without a stamp, and --continue-from with --resume are named.
+    let other = tmp.path().join("other.json");
+    fs::write(
+        &other,
+        fs::read_to_string(&cfg)
+            .unwrap()
+            .replace(r#""iters": 2"#, r#""iters": 3"#),
+    )
+    .unwrap();
+    let err = failed(&pins(&[
+        "train",
+        "--config",
+        s(&other),
+        "--data",
+        s(&data),
+        "--out",
+        s(&tmp.path().join("x")),
+        "--continue-from",
+        s(&exported),
+        "--quiet",
+    ]));
+    assert!(
+        err.contains("another config") && err.contains("--init"),
+        "{err}"
+    );
+    let shipped =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/weights/mms-small.safetensors");
+    let err = failed(&pins(&[
+        "train",
+        "--config",
+        s(&cfg),
+        "--data",
+        s(&data),
+        "--out",
+        s(&tmp.path().join("y")),
+        "--continue-from",
+        s(&shipped),
+        "--quiet",
+    ]));
+    assert!(err.contains("no training stamp"), "{err}");
+    assert!(!tmp.path().join("x").exists() && !tmp.path().join("y").exists());
+}
