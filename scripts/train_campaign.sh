@@ -5,9 +5,11 @@
 #
 #   scripts/train_campaign.sh [run] [BUDGET]       continue on this machine's CPU, niced (BUDGET
 #                                                  as pins train --time-budget; default 2h)
-#   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) for MINUTES
-#                                                  (at most 9) and copy the checkpoint, weights,
-#                                                  log and pairs/s to OUTDIR (files < 16 MiB)
+#   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) until MINUTES
+#                                                  (at most 9) after the script started, data
+#                                                  generation included, and copy the checkpoint,
+#                                                  weights, log and pairs/s to OUTDIR (each file
+#                                                  under 16 MiB)
 #   scripts/train_campaign.sh status               where the campaign stands
 #
 # Where a session starts, in order: the run folder's checkpoint ($WORK/run, --resume: exactly
@@ -24,6 +26,7 @@
 # after its config changed).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+t_script=$(date +%s)
 CAMPAIGN=${CAMPAIGN:-experiments/campaign}
 WORK=${WORK:-out/campaign}
 RUN=$WORK/run
@@ -80,9 +83,10 @@ if os.path.isfile(log):
     val = [r for r in rows if r.get("val_epe")]
     if rows:
         last = rows[-1]
-        print(f"last step {last['step']}: loss {float(last['loss']):.3f}, "
-              f"{float(last['ms_per_step']):.0f} ms per step "
-              f"({batch / float(last['ms_per_step']) * 1e3:.2f} pairs/s)")
+        recent = sorted(float(r["ms_per_step"]) for r in rows[-50:])
+        ms = recent[len(recent) // 2]
+        print(f"last step {last['step']}: loss {float(last['loss']):.3f}; median of the last "
+              f"{len(recent)} steps {ms:.0f} ms per step ({batch / ms * 1e3:.2f} pairs/s)")
     if val:
         print(f"last validation (step {val[-1]['step']}): EPE {float(val[-1]['val_epe']):.3f}, "
               f"1 px {float(val[-1]['val_px1']):.3f}")
@@ -129,7 +133,9 @@ elif [ -n "${CHECKPOINT:-}" ]; then
     mkdir -p "$RUN/checkpoint.tmp"
     cp "$CHECKPOINT"/state.json "$CHECKPOINT"/model-*.bpk "$CHECKPOINT"/optim-*.bin "$RUN/checkpoint.tmp/" ||
         die "CHECKPOINT=$CHECKPOINT lacks its model-*.bpk or optim-*.bin"
-    [ -f "$CHECKPOINT/log.csv" ] && cp "$CHECKPOINT/log.csv" "$RUN/log.csv"
+    for f in log.csv last.safetensors best.safetensors; do
+        if [ -f "$CHECKPOINT/$f" ]; then cp "$CHECKPOINT/$f" "$RUN/$f"; fi
+    done
     mv "$RUN/checkpoint.tmp" "$RUN/checkpoint"
     start=(--resume)
 elif [ -f "$WEIGHTS" ] && [ -z "${NEW_SCHEDULE:-}" ]; then
@@ -155,8 +161,12 @@ outdir=${2:?usage: train_campaign.sh gpu MINUTES OUTDIR}
 [ "$minutes" -ge 1 ] && [ "$minutes" -le 9 ] || die "MINUTES must be in 1..9, got $minutes"
 mkdir -p "$outdir"
 t0=$(date +%s)
+# What is left of the minutes once the data are made, less 30 s for the last step and the copy.
+left=$((minutes * 60 - (t0 - t_script) - 30))
+[ "$left" -ge 60 ] || die "only ${left} s are left of ${minutes} min after generating the data"
+echo "training for at most ${left} s on ${DEVICE:-wgpu}"
 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" --device "${DEVICE:-wgpu}" \
-    "${start[@]}" --time-budget "${minutes}m"
+    "${start[@]}" --time-budget "${left}s"
 echo "trained for $(($(date +%s) - t0)) s on ${DEVICE:-wgpu}"
 status | tee "$outdir/status.txt"
 state="$RUN/checkpoint/state.json"
@@ -164,5 +174,5 @@ state="$RUN/checkpoint/state.json"
 model=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["model_file"])' "$state")
 optim=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["optimizer_file"])' "$state")
 cp "$state" "$RUN/checkpoint/$model" "$RUN/checkpoint/$optim" "$RUN/log.csv" "$RUN/last.safetensors" "$outdir/"
-[ -f "$RUN/best.safetensors" ] && cp "$RUN/best.safetensors" "$outdir/"
+if [ -f "$RUN/best.safetensors" ]; then cp "$RUN/best.safetensors" "$outdir/"; fi
 ls -l "$outdir"
