@@ -16,7 +16,7 @@
 # where it stopped); else a checkpoint folder brought from elsewhere (CHECKPOINT=DIR holding
 # state.json, model-*.bpk, optim-*.bin, log.csv); else the campaign's last committed weights
 # (experiments/campaign/weights.safetensors, --continue-from: the step its training stamp
-# records, a learning-rate warm-up); else the shipped mms-small-real weights at step 0 (--init).
+# records, with a learning-rate warm-up); else the shipped mms-small-real weights at step 0 (--init).
 # A session ends at its budget, on SIGTERM or Ctrl-C with a checkpoint; a kill loses at most
 # ten minutes. After a session, `status` prints the step, the pairs seen and the hours.
 #

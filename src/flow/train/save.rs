@@ -66,7 +66,7 @@ pub fn stamp(
         step,
         steps: config.steps,
         pairs_seen: (step * config.batch_size) as u64,
-        config_sha256: checkpoint::config_sha256(config)?,
+        config: config.clone(),
         data: fingerprint.clone(),
     })
 }

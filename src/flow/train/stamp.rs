@@ -1,6 +1,6 @@
 //! The training stamp a run writes into its weights files (Note S11 training as a campaign):
-//! where in its schedule the weights stand (step of steps, pairs seen) and the hashes of the
-//! config and data that made them (no wall-clock time: equal runs write equal files), so that a run can go on from a weights file alone — a warm
+//! where in its schedule the weights stand (step of steps, pairs seen), the config that made
+//! them and the fingerprint of their data (no wall-clock time: equal runs write equal files), so that a run can go on from a weights file alone — a warm
 //! restart, when the full checkpoint (optimiser state) is gone — on the same schedule, after a
 //! short learning-rate warm-up while AdamW's moments are rebuilt.
 
@@ -26,8 +26,9 @@ pub struct TrainingStamp {
     pub steps: usize,
     /// Training pairs seen (steps × batch).
     pub pairs_seen: u64,
-    /// SHA-256 of the run's config JSON ([`super::checkpoint::config_sha256`]).
-    pub config_sha256: String,
+    /// The run's config (a setting added to pins later reads as its default, so the weights
+    /// of a run stay continuable across versions).
+    pub config: TrainConfig,
     /// The training data's fingerprint (pairs, and a hash of their names and sizes).
     pub data: DataFingerprint,
 }
@@ -59,17 +60,16 @@ impl TrainingStamp {
         data: &DataFingerprint,
         what: &Path,
     ) -> Result<usize> {
-        let sha = super::checkpoint::config_sha256(config)?;
-        if sha != self.config_sha256 {
+        let diffs = super::checkpoint::config_differences(&self.config, config);
+        if !diffs.is_empty() {
             return Err(Error::invalid(
                 "--continue-from",
                 format!(
-                    "{} was trained with another config (hash {}) than this run's (hash {}): \
-                     a warm restart continues the same schedule; use --init to fine-tune \
-                     from it on a new one",
+                    "{} was trained with another config ({} → this run's): {}; a warm restart \
+                     continues the same schedule: use --init to fine-tune from it on a new one",
                     what.display(),
-                    short(&self.config_sha256),
-                    short(&sha)
+                    "its stamp",
+                    diffs.join(", ")
                 ),
             ));
         }
@@ -140,7 +140,7 @@ mod tests {
             step: 700,
             steps: config.steps,
             pairs_seen: 2800,
-            config_sha256: super::super::checkpoint::config_sha256(&config).unwrap(),
+            config: config.clone(),
             data: DataFingerprint {
                 pairs: 10,
                 sha256: "ab".repeat(32),
