@@ -324,3 +324,104 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     assert!(err.contains("no training stamp"), "{err}");
     assert!(!tmp.path().join("x").exists() && !tmp.path().join("y").exists());
 }
+
+/// Runs `scripts/train_campaign.sh ARGS` with the test's binary and `env`; (success, stdout +
+/// stderr).
+fn campaign(args: &[&str], env: &[(&str, &Path)], extra: &[(&str, &str)]) -> (bool, String) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut cmd = std::process::Command::new("bash");
+    cmd.arg(root.join("scripts/train_campaign.sh"))
+        .args(args)
+        .env("PINS", env!("CARGO_BIN_EXE_pins"));
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    for (k, v) in extra {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+#[test]
+fn the_campaign_script_continues_from_wherever_it_stands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (c, work, out) = (
+        tmp.path().join("campaign"),
+        tmp.path().join("work"),
+        tmp.path().join("gpu_out"),
+    );
+    let env = [("CAMPAIGN", c.as_path()), ("WORK", work.as_path())];
+    let (ok_, text) = campaign(&["status"], &env, &[]);
+    assert!(!ok_ && text.contains("no campaign folder"), "{text}");
+    fs::create_dir_all(c.join("data")).unwrap();
+    fs::write(
+        c.join("train.json"),
+        r#"{"model": "mms-small", "steps": 12, "batch_size": 1, "crop": [64, 64], "iters": 2,
+            "val_fraction": 0.25, "val_every": 4, "val_max_pairs": 1, "val_iters": 2,
+            "checkpoint_every": 1000, "restart_warmup": 2}"#,
+    )
+    .unwrap();
+    for (name, count, seed) in [("a", 3, 1), ("b", 2, 2)] {
+        fs::write(
+            c.join(format!("data/{name}.json")),
+            format!(
+                r#"{{"count": {count}, "seed": {seed}, "scene": {{"kind": "chairs", "width": 80, "height": 64}}}}"#
+            ),
+        )
+        .unwrap();
+    }
+    // A first session of one second: from the shipped weights, ended by its budget.
+    let (ok_, text) = campaign(&["run", "1s"], &env, &[]);
+    assert!(ok_, "{text}");
+    assert!(
+        text.contains("5 pairs in") && text.contains("starting: --init"),
+        "{text}"
+    );
+    assert!(text.contains("stopped by its time budget"), "{text}");
+    // Its weights committed, its checkpoint lost: a warm restart from the weights.
+    let weights = c.join("weights.safetensors");
+    fs::copy(work.join("run/last.safetensors"), &weights).unwrap();
+    fs::remove_dir_all(work.join("run")).unwrap();
+    let (ok_, text) = campaign(&["run", "1h"], &env, &[]);
+    assert!(ok_, "{text}");
+    assert!(
+        text.contains("starting: --continue-from") && text.contains("step 12 of 12"),
+        "{text}"
+    );
+    // The GPU mode (here on the CPU) writes the checkpoint and weights to bring back.
+    fs::remove_dir_all(work.join("run")).unwrap();
+    let (ok_, text) = campaign(
+        &["gpu", "2", out.to_str().unwrap()],
+        &env,
+        &[("DEVICE", "cpu")],
+    );
+    assert!(ok_, "{text}");
+    for f in ["state.json", "last.safetensors", "log.csv", "status.txt"] {
+        assert!(out.join(f).is_file(), "{f} missing: {text}");
+    }
+    // Brought back to a machine whose run folder is gone, the checkpoint continues the run.
+    fs::remove_dir_all(work.join("run")).unwrap();
+    let gpu_out = out.as_path();
+    let (ok_, text) = campaign(
+        &["run", "1h"],
+        &env,
+        &[("CHECKPOINT", gpu_out.to_str().unwrap())],
+    );
+    assert!(ok_ && text.contains("starting: --resume"), "{text}");
+    // A changed config refuses the campaign's weights, naming the setting.
+    fs::remove_dir_all(work.join("run")).unwrap();
+    let cfg = fs::read_to_string(c.join("train.json")).unwrap();
+    fs::write(
+        c.join("train.json"),
+        cfg.replace(r#""iters": 2"#, r#""iters": 3"#),
+    )
+    .unwrap();
+    let (ok_, text) = campaign(&["run", "1h"], &env, &[]);
+    assert!(!ok_ && text.contains("iters: 2 → 3"), "{text}");
+}

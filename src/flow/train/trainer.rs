@@ -2,7 +2,8 @@
 //! AdamW, the one-cycle schedule and global gradient clipping; held-out validation on a
 //! schedule; atomic checkpoints from which `--resume` continues exactly (same step, optimiser
 //! state, schedule and data order); a CSV log and a PNG plot of the curves. A session ends at
-//! its last step, at `--stop-after`, before the step that would pass `--time-budget`, or at the
+//! its last step, at `--stop-after`, before the step (and its validation) that would pass
+//! `--time-budget` (the last ones' durations are the estimate), or at the
 //! step after a stop request (SIGTERM), each time with a checkpoint; one is written at least
 //! every ten minutes besides. `--continue-from` goes on from a weights file's training stamp
 //! when the checkpoint is gone (a warm restart, [`super::stamp`]).
@@ -126,10 +127,17 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         .map_or(config.steps, |n| (start + n).min(config.steps));
     let mut batches = Prefetch::new(&config, &train_set, step, stop, Prefetch::default_depth());
     let (mut saved_at, mut last_save) = (step, Instant::now());
-    let mut last_step = Duration::ZERO;
+    let (mut last_step, mut last_validation) = (Duration::ZERO, Duration::ZERO);
     let mut stopped = None;
     while step < stop {
-        if let Some(reason) = budget.should_stop(last_step) {
+        let validates = (step + 1) % config.val_every == 0 || step + 1 == config.steps;
+        let next = last_step
+            + if validates {
+                last_validation
+            } else {
+                Duration::ZERO
+            };
+        if let Some(reason) = budget.should_stop(next) {
             stopped = Some(reason);
             break;
         }
@@ -170,7 +178,8 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             val_epe: None,
             val_px1: None,
         };
-        if step % config.val_every == 0 || step == config.steps {
+        if validates {
+            let t_val = Instant::now();
             let stamp = save::stamp(&config, step, &fingerprint)?;
             let scores = validate::validate(
                 &run.model,
@@ -183,6 +192,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             )?;
             row.val_epe = Some(scores.epe);
             row.val_px1 = Some(scores.px1);
+            last_validation = t_val.elapsed();
         }
         run.log.append(&row)?;
         bar.set_message(format!(
