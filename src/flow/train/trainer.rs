@@ -180,7 +180,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         };
         if validates {
             let t_val = Instant::now();
-            let stamp = save::stamp(&config, step, &fingerprint)?;
+            let stamp = save::stamp(&config, step, &fingerprint);
             let scores = validate::validate(
                 &run.model,
                 &model_config,
