@@ -27,6 +27,29 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `pins train --config CFG --data DATA --out OUT --quiet EXTRA…`, with `threads` rayon threads
+/// when given.
+fn train(
+    cfg: &Path,
+    data: &Path,
+    out: &Path,
+    extra: &[&str],
+    threads: Option<usize>,
+) -> std::process::Output {
+    let mut args = vec![
+        "train",
+        "--config",
+        s(cfg),
+        "--data",
+        s(data),
+        "--out",
+        s(out),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    pins_with_threads(&args, threads)
+}
+
 /// The log's rows as (step, lr, loss) text.
 fn rows(run: &Path) -> Vec<String> {
     fs::read_to_string(run.join("log.csv"))
@@ -51,19 +74,7 @@ fn identical_runs_are_byte_identical_at_one_and_two_threads() {
     let mut files = Vec::new();
     for (i, threads) in [1, 2, 2].into_iter().enumerate() {
         let run = tmp.path().join(format!("run{i}"));
-        ok(&pins_with_threads(
-            &[
-                "train",
-                "--config",
-                s(&cfg),
-                "--data",
-                s(&data),
-                "--out",
-                s(&run),
-                "--quiet",
-            ],
-            Some(threads),
-        ));
+        ok(&train(&cfg, &data, &run, &[], Some(threads)));
         files.push((threads, fs::read(run.join("last.safetensors")).unwrap()));
     }
     for (threads, bytes) in &files[1..] {
@@ -80,23 +91,7 @@ fn a_time_budget_ends_the_session_with_a_checkpoint_and_resume_continues_exactly
     let data = common::tiny_dataset(tmp.path(), "data", 4, 3);
     let cfg = config(tmp.path(), 100_000, 1);
     let straight = tmp.path().join("straight");
-    let args = |run: &Path| {
-        vec![
-            "train".to_string(),
-            "--config".into(),
-            s(&cfg).into(),
-            "--data".into(),
-            s(&data).into(),
-            "--out".into(),
-            s(run).into(),
-            "--quiet".into(),
-        ]
-    };
-    let run_with = |run: &Path, extra: &[&str]| {
-        let mut a = args(run);
-        a.extend(extra.iter().map(|x| x.to_string()));
-        pins(&a.iter().map(String::as_str).collect::<Vec<_>>())
-    };
+    let run_with = |run: &Path, extra: &[&str]| train(&cfg, &data, run, extra, None);
     // A budget of one second ends the session before the step that would pass it, however
     // fast this machine is (the run has 100 000 steps): a checkpoint at the last step taken.
     let budgeted = tmp.path().join("budgeted");
@@ -199,18 +194,7 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     let data = common::tiny_dataset(tmp.path(), "data", 4, 3);
     let cfg = config(tmp.path(), 6, 1);
     let first = tmp.path().join("first");
-    ok(&pins(&[
-        "train",
-        "--config",
-        s(&cfg),
-        "--data",
-        s(&data),
-        "--out",
-        s(&first),
-        "--stop-after",
-        "3",
-        "--quiet",
-    ]));
+    ok(&train(&cfg, &data, &first, &["--stop-after", "3"], None));
     // The exported weights keep the stamp: the checkpoint is gone, the export is all there is.
     let exported = tmp.path().join("w.safetensors");
     ok(&pins(&[
@@ -222,18 +206,13 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     ]));
     fs::remove_dir_all(&first).unwrap();
     let second = tmp.path().join("second");
-    let out = ok(&pins(&[
-        "train",
-        "--config",
-        s(&cfg),
-        "--data",
-        s(&data),
-        "--out",
-        s(&second),
-        "--continue-from",
-        s(&exported),
-        "--quiet",
-    ]));
+    let out = ok(&train(
+        &cfg,
+        &data,
+        &second,
+        &["--continue-from", s(&exported)],
+        None,
+    ));
     assert!(out.contains("6 steps (6 pairs seen)"), "{out}");
     // The export is the run's best weights (validated at step 2): the run goes on from there.
     let at = stamp_step(&exported);
@@ -249,16 +228,7 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     );
     // The schedule's rate at step 4, from an uninterrupted run, against the warm-up's.
     let straight = tmp.path().join("straight");
-    ok(&pins(&[
-        "train",
-        "--config",
-        s(&cfg),
-        "--data",
-        s(&data),
-        "--out",
-        s(&straight),
-        "--quiet",
-    ]));
+    ok(&train(&cfg, &data, &straight, &[], None));
     let lr = |run: &Path, step: usize| -> f64 {
         rows(run)[step - 1]
             .split(',')
@@ -291,36 +261,26 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
             .replace(r#""iters": 2"#, r#""iters": 3"#),
     )
     .unwrap();
-    let err = failed(&pins(&[
-        "train",
-        "--config",
-        s(&other),
-        "--data",
-        s(&data),
-        "--out",
-        s(&tmp.path().join("x")),
-        "--continue-from",
-        s(&exported),
-        "--quiet",
-    ]));
+    let err = failed(&train(
+        &other,
+        &data,
+        &tmp.path().join("x"),
+        &["--continue-from", s(&exported)],
+        None,
+    ));
     assert!(
         err.contains("another config") && err.contains("--init"),
         "{err}"
     );
     let shipped =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/weights/mms-small.safetensors");
-    let err = failed(&pins(&[
-        "train",
-        "--config",
-        s(&cfg),
-        "--data",
-        s(&data),
-        "--out",
-        s(&tmp.path().join("y")),
-        "--continue-from",
-        s(&shipped),
-        "--quiet",
-    ]));
+    let err = failed(&train(
+        &cfg,
+        &data,
+        &tmp.path().join("y"),
+        &["--continue-from", s(&shipped)],
+        None,
+    ));
     assert!(err.contains("no training stamp"), "{err}");
     assert!(!tmp.path().join("x").exists() && !tmp.path().join("y").exists());
 }

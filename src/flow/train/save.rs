@@ -57,11 +57,7 @@ pub fn save(
 }
 
 /// The training stamp of a run's weights after `step` steps on the data of `fingerprint`.
-pub fn stamp(
-    config: &TrainConfig,
-    step: usize,
-    fingerprint: &DataFingerprint,
-) -> TrainingStamp {
+pub fn stamp(config: &TrainConfig, step: usize, fingerprint: &DataFingerprint) -> TrainingStamp {
     TrainingStamp {
         step,
         steps: config.steps,
