@@ -4,7 +4,7 @@
 //! checkpoint is gone; bad input is named.
 
 mod common;
-use common::{failed, ok, pins, pins_with_threads};
+use common::{failed, log_column, ok, pins, pins_with_threads};
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -217,10 +217,7 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     // The export is the run's best weights (validated at step 2): the run goes on from there.
     let at = stamp_step(&exported);
     assert_eq!(at, 2);
-    let steps: Vec<usize> = rows(&second)
-        .iter()
-        .map(|r| r.split(',').next().unwrap().parse().unwrap())
-        .collect();
+    let steps: Vec<usize> = log_column(&second, 0).iter().map(|&v| v as usize).collect();
     assert_eq!(
         steps,
         (at + 1..=6).collect::<Vec<_>>(),
@@ -229,22 +226,8 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     // The schedule's rate at step 4, from an uninterrupted run, against the warm-up's.
     let straight = tmp.path().join("straight");
     ok(&train(&cfg, &data, &straight, &[], None));
-    let lr = |run: &Path, step: usize| -> f64 {
-        rows(run)[step - 1]
-            .split(',')
-            .nth(1)
-            .unwrap()
-            .parse()
-            .unwrap()
-    };
-    let lr_after = |step: usize| -> f64 {
-        rows(&second)[step - at - 1]
-            .split(',')
-            .nth(1)
-            .unwrap()
-            .parse()
-            .unwrap()
-    };
+    let lr = |run: &Path, step: usize| log_column(run, 1)[step - 1];
+    let lr_after = |step: usize| log_column(&second, 1)[step - at - 1];
     // A warm-up of 2 steps from a 25th of the schedule's rate; the log writes 7 digits.
     assert!((lr_after(3) / (lr(&straight, 3) / 25.0) - 1.0).abs() < 1e-5);
     assert!(lr_after(4) > lr_after(3) && lr_after(4) < lr(&straight, 4));
