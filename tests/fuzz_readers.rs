@@ -8,8 +8,11 @@
 //! Environment:
 //! - `PINS_FUZZ_SEED` (default 20240611): the RNG seed; variant `i` of a format depends only on
 //!   (seed, format, i), so a failure is replayed exactly.
-//! - `PINS_FUZZ_SECONDS` (default 5): time budget per binary format (JSON configs get 0.4 of
-//!   it each); the whole file then runs in about two minutes in release on 2 cores.
+//! - `PINS_FUZZ_VARIANTS` (default 2000): variants per binary format (JSON configs get 0.4 of
+//!   it each). A fixed count, so every machine runs the same variants whatever its speed or
+//!   load, and a run that passes here passes everywhere.
+//! - `PINS_FUZZ_SECONDS`: a time budget per binary format instead of the count, for long runs
+//!   (e.g. `PINS_FUZZ_SECONDS=600` overnight); how far it gets then depends on the machine.
 //! - `PINS_FUZZ_ONLY=FORMAT` runs one format; `PINS_FUZZ_ONLY=FORMAT:INDEX` replays one variant
 //!   and prints its outcome; `PINS_FUZZ_DUMP=FILE` also writes that variant's bytes there.
 //!
@@ -209,9 +212,17 @@ fn bound(len: usize) -> usize {
     (64 << 20).max(32 * len)
 }
 
+/// How much each format is fuzzed.
+#[derive(Clone, Copy)]
+enum Amount {
+    Variants(u64),
+    Seconds(f64),
+}
+
 struct Settings {
     seed: u64,
-    seconds: f64,
+    /// Variants per format of weight 1, or a time budget per format of weight 1.
+    amount: Amount,
     only: Option<(String, Option<u64>)>,
     dump: Option<PathBuf>,
 }
@@ -221,14 +232,23 @@ fn settings() -> Settings {
         .ok()
         .map(|s| s.trim().parse().expect("PINS_FUZZ_SEED must be an integer"))
         .unwrap_or(20240611);
-    let seconds = std::env::var("PINS_FUZZ_SECONDS")
-        .ok()
-        .map(|s| {
+    let amount = match std::env::var("PINS_FUZZ_SECONDS") {
+        Ok(s) => Amount::Seconds(
             s.trim()
                 .parse()
-                .expect("PINS_FUZZ_SECONDS must be a number")
-        })
-        .unwrap_or(5.0);
+                .expect("PINS_FUZZ_SECONDS must be a number"),
+        ),
+        Err(_) => Amount::Variants(
+            std::env::var("PINS_FUZZ_VARIANTS")
+                .ok()
+                .map(|s| {
+                    s.trim()
+                        .parse()
+                        .expect("PINS_FUZZ_VARIANTS must be an integer")
+                })
+                .unwrap_or(2000),
+        ),
+    };
     let only = std::env::var("PINS_FUZZ_ONLY")
         .ok()
         .map(|s| match s.split_once(':') {
@@ -250,7 +270,7 @@ fn settings() -> Settings {
     }
     Settings {
         seed,
-        seconds,
+        amount,
         only,
         dump,
     }
@@ -403,7 +423,10 @@ fn fuzz(t: Target) {
         std::fs::write(dir.path().join(&f.name), &f.bytes).unwrap();
     }
     let file_name = path.file_name().unwrap().to_string_lossy().into_owned();
-    let budget = Duration::from_secs_f64(s.seconds * t.weight);
+    let (budget, count) = match s.amount {
+        Amount::Seconds(seconds) => (Duration::from_secs_f64(seconds * t.weight), u64::MAX),
+        Amount::Variants(n) => (Duration::MAX, ((n as f64 * t.weight).ceil() as u64).max(10)),
+    };
     let start = Instant::now();
     let (mut ran, mut oks, mut errs) = (0u64, 0u64, 0u64);
     let (mut max_peak, mut max_ratio) = (0usize, 0.0f64);
@@ -416,7 +439,7 @@ fn fuzz(t: Target) {
         None => Box::new(0..),
     };
     for index in indices {
-        if replay.is_none() && start.elapsed() > budget {
+        if replay.is_none() && (index >= count || start.elapsed() > budget) {
             break;
         }
         let (from, desc, bytes) = variant(&t, s.seed, index);

@@ -400,7 +400,7 @@ mod tests {
     /// The full default: N = 2048, K = 65, paper lens. Run with
     /// `cargo test --release default_psf_runtime -- --ignored --nocapture`.
     #[test]
-    #[ignore]
+    #[ignore = "system tier (cargo test --release -- --ignored): the full-size default PSF"]
     fn default_psf_runtime() {
         let t = std::time::Instant::now();
         let r = compute_psf(&PsfParams::default()).unwrap();

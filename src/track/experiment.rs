@@ -36,15 +36,74 @@ pub enum FlowSource {
     Dis,
 }
 
-/// One named clip: a clip config file (relative to the experiment file).
+/// One named clip: a clip file, or the clip written in the experiment, rendered once or once per
+/// seed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClipSpec {
     pub name: String,
-    pub config: std::path::PathBuf,
-    /// The loaded clip (filled in by `ExperimentConfig::from_file`).
+    /// A clip file (`scene` and `camera`, as `pins track render` takes), relative to the
+    /// experiment file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub config: Option<std::path::PathBuf>,
+    /// Or the clip itself, written here as in a clip file.
+    #[serde(default, rename = "clip", skip_serializing_if = "Option::is_none")]
+    pub inline: Option<SequenceConfig>,
+    /// Render the clip once per seed (the scene's seed replaced), each run named `NAME_seedN`;
+    /// empty: once, with the clip's own seed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub seeds: Vec<u64>,
+    /// The loaded clip (filled in by `ExperimentConfig::from_file`, one spec per seed).
     #[serde(skip)]
-    pub clip: SequenceConfig,
+    pub loaded: SequenceConfig,
+}
+
+impl ClipSpec {
+    /// The clip's runs: its file or inline clip loaded (paths relative to `base`), once per seed.
+    fn expand(self, base: &Path) -> Result<Vec<ClipSpec>> {
+        let what = format!("clip {:?}", self.name);
+        let clip = match (&self.config, &self.inline) {
+            (Some(file), None) => SequenceConfig::from_file(&base.join(file))?,
+            (None, Some(inline)) => {
+                let mut clip = inline.clone();
+                clip.camera.resolve_paths(base);
+                clip.validate()
+                    .map_err(|e| Error::invalid(&what, e.to_string()))?;
+                clip
+            }
+            _ => {
+                return Err(Error::invalid(
+                    &what,
+                    "needs either \"config\" (a clip file) or \"clip\" (the clip itself)",
+                ));
+            }
+        };
+        let one = |name: String, clip: SequenceConfig| ClipSpec {
+            name,
+            config: self.config.as_ref().map(|f| base.join(f)),
+            inline: None,
+            seeds: Vec::new(),
+            loaded: clip,
+        };
+        if self.seeds.is_empty() {
+            return Ok(vec![one(self.name.clone(), clip)]);
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        self.seeds
+            .iter()
+            .map(|&seed| {
+                if !seen.insert(seed) {
+                    return Err(Error::invalid(
+                        &what,
+                        format!("seed {seed} is listed twice"),
+                    ));
+                }
+                let mut c = clip.clone();
+                c.scene.seed = seed;
+                Ok(one(format!("{}_seed{seed}", self.name), c))
+            })
+            .collect()
+    }
 }
 
 /// One named predictor setting.
@@ -152,11 +211,10 @@ impl ExperimentConfig {
     pub fn from_file(path: &Path) -> Result<Self> {
         let mut cfg: Self = crate::io::read_json(path)?;
         let base = path.parent().unwrap_or(Path::new(""));
-        for c in &mut cfg.clips {
-            if c.config.is_relative() {
-                c.config = base.join(&c.config);
-            }
-            c.clip = SequenceConfig::from_file(&c.config)?;
+        let specs = std::mem::take(&mut cfg.clips);
+        for c in specs {
+            let runs = c.expand(base).map_err(|e| crate::io::in_config(path, e))?;
+            cfg.clips.extend(runs);
         }
         cfg.validate().map_err(|e| crate::io::in_config(path, e))?;
         Ok(cfg)
@@ -228,8 +286,15 @@ impl ExperimentConfig {
                 ));
             }
         }
+        let mut names = std::collections::BTreeSet::new();
         for c in &self.clips {
-            c.clip.validate()?;
+            if !names.insert(c.name.as_str()) {
+                return Err(Error::invalid(
+                    "clips",
+                    format!("two clips are named {:?}", c.name),
+                ));
+            }
+            c.loaded.validate()?;
         }
         for p in &self.predictors {
             p.mtp.validate()?;
@@ -403,7 +468,7 @@ pub fn run(
     let several = cfg.points().len() > 1;
     for clip in &cfg.clips {
         for point in cfg.points() {
-            let (data, ms) = clip_flows(&clip.clip, cfg.flow, predictor.as_ref(), point)?;
+            let (data, ms) = clip_flows(&clip.loaded, cfg.flow, predictor.as_ref(), point)?;
             flow_ms.extend(ms);
             let mms_point = (cfg.flow == FlowSource::Mms).then_some(point);
             let estimated_flow = cfg.flow != FlowSource::Truth;
@@ -592,4 +657,72 @@ pub fn table(r: &ExperimentReport) -> String {
         s += &format!("{name} flow: {ms:.0} ms per frame\n");
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENE: &str = r#"{"scene": {"width": 64, "height": 48, "frames": 4, "seed": 7,
+        "objects": [{"path": "sinusoid", "radius": 6}]}}"#;
+
+    fn load(dir: &Path, clips: &str) -> Result<ExperimentConfig> {
+        std::fs::write(dir.join("clip.json"), SCENE).unwrap();
+        let path = dir.join("experiment.json");
+        std::fs::write(
+            &path,
+            format!(r#"{{"clips": {clips}, "predictors": [{{"name": "poly"}}], "horizons": [1]}}"#),
+        )
+        .unwrap();
+        ExperimentConfig::from_file(&path)
+    }
+
+    #[test]
+    fn clips_come_from_files_or_inline_once_per_seed() {
+        let dir = tempfile::tempdir().unwrap();
+        let cfg = load(
+            dir.path(),
+            &format!(
+                r#"[{{"name": "file", "config": "clip.json"}},
+                    {{"name": "seeded", "config": "clip.json", "seeds": [3, 4]}},
+                    {{"name": "inline", "clip": {SCENE}, "seeds": [9]}}]"#
+            ),
+        )
+        .unwrap();
+        let runs: Vec<(&str, u64)> = cfg
+            .clips
+            .iter()
+            .map(|c| (c.name.as_str(), c.loaded.scene.seed))
+            .collect();
+        assert_eq!(
+            runs,
+            [
+                ("file", 7),
+                ("seeded_seed3", 3),
+                ("seeded_seed4", 4),
+                ("inline_seed9", 9)
+            ]
+        );
+        // Apart from the seed, a seeded run is the clip itself.
+        let mut c = cfg.clips[1].loaded.clone();
+        c.scene.seed = 7;
+        assert_eq!(c, cfg.clips[0].loaded);
+    }
+
+    #[test]
+    fn clip_specs_that_say_too_little_or_repeat_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = |clips: &str| load(dir.path(), clips).unwrap_err().to_string();
+        assert!(err(r#"[{"name": "a"}]"#).contains("needs either"));
+        let both = format!(r#"[{{"name": "a", "config": "clip.json", "clip": {SCENE}}}]"#);
+        assert!(err(&both).contains("needs either"));
+        assert!(
+            err(r#"[{"name": "a", "config": "clip.json", "seeds": [1, 1]}]"#).contains("seed 1")
+        );
+        let twice =
+            r#"[{"name": "a", "config": "clip.json"}, {"name": "a", "config": "clip.json"}]"#;
+        assert!(err(twice).contains("two clips are named"));
+        let missing = err(r#"[{"name": "a", "config": "nowhere.json"}]"#);
+        assert!(missing.contains("nowhere.json"), "{missing}");
+    }
 }
