@@ -20,8 +20,7 @@
 //! | [`wide`] | Notes S2, S3, S16: the 3-lens array, calibration, stitching to 135° |
 //! | [`track`] | Notes S13–S15: ROI, Kalman, polynomial fits, extrapolation, multi-object IDs (Table S5) |
 //! | [`live`] | Note S1: the ESP32 camera's MJPEG stream, recording/replay, the live pipeline and its browser view |
-//! | [`report`] | benchmarks, tables and plots |
-//! | [`report_timing`] | benchmark timing (median after warm-up) |
+//! | [`report`] | benchmarks, tables and plots; the real-data benchmark, Note S12's detection limits |
 
 pub mod dataset;
 pub mod error;
@@ -31,7 +30,6 @@ pub mod io;
 pub mod live;
 pub mod optics;
 pub mod report;
-pub mod report_timing;
 pub mod rng;
 pub mod scene;
 pub mod track;

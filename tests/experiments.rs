@@ -31,7 +31,7 @@ fn every_experiment_config_is_valid() {
         } else if name.starts_with("bench_real") {
             pins::report::bench_real::config::load(&p).unwrap_or_else(fail(&p));
         } else if name.starts_with("s12_limits") {
-            pins::flow::limits::LimitsConfig::from_file(&p).unwrap_or_else(fail(&p));
+            pins::report::detection_limits::LimitsConfig::from_file(&p).unwrap_or_else(fail(&p));
         } else if name.starts_with("track_") {
             pins::dataset::sequence::SequenceConfig::from_file(&p).unwrap_or_else(fail(&p));
             clips += 1;

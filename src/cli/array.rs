@@ -162,7 +162,7 @@ pub(crate) fn array(c: ArrayCommand) -> Result<()> {
         } => {
             let layout = layout_of(&config)?;
             let raw = io::read_image(&grid)?;
-            let rows = pins::wide::bench::orders_table(&layout, &raw, dots, reps.max(1))?;
+            let rows = pins::report::array_bench::orders_table(&layout, &raw, dots, reps.max(1))?;
             println!(
                 "| order | RMS (px) | max (px) | held-out RMS (px) | stitch ms (1 core) | frames/s |\n|---|---|---|---|---|---|"
             );

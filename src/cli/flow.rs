@@ -454,7 +454,8 @@ pub(crate) fn bench_real(a: BenchRealArgs) -> Result<()> {
 }
 
 pub(crate) fn detect_limits(a: DetectLimitsArgs) -> Result<()> {
-    use pins::flow::{infer::Predictor, limits};
+    use pins::flow::infer::Predictor;
+    use pins::report::detection_limits as limits;
     let mut cfg = match &a.config {
         Some(p) => limits::LimitsConfig::from_file(p)?,
         None => limits::LimitsConfig::default(),

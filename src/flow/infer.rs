@@ -8,7 +8,7 @@ use burn::prelude::*;
 use super::data::image_tensor;
 use super::model::{InputPadder, Mms, MmsConfig};
 use super::refine::{Refine, RefineConfig, refine};
-use super::scale::resize_flow;
+use super::resample::resize_flow;
 use super::weights;
 use crate::error::{Error, Result};
 use crate::imaging::resize::downscale;

@@ -8,14 +8,13 @@ use std::path::Path;
 
 use super::atomic::{read_bytes, write_bytes_atomic};
 use super::budget;
-use super::flow_file::is_unknown;
+use super::unknown::is_unknown;
 use crate::error::{Error, Result};
 use crate::types::Flow;
 
 /// The `.flo` magic number, stored as a little-endian `f32` ("PIEH" in ASCII).
 pub const FLO_MAGIC: f32 = 202021.25;
-/// Components at or above this magnitude mean "unknown" in Middlebury files.
-pub const UNKNOWN_THRESHOLD: f32 = 1e9;
+pub use super::unknown::UNKNOWN_THRESHOLD;
 
 const HEADER_LEN: usize = 12;
 

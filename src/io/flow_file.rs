@@ -8,7 +8,7 @@ use std::path::Path;
 use super::atomic::read_bytes;
 use super::exr::{decode_flow_exr, write_flow_exr};
 use super::ext_lower;
-use super::flo::{UNKNOWN_THRESHOLD, decode_flo, write_flo};
+use super::flo::{decode_flo, write_flo};
 use super::kitti::{decode_kitti_flow, write_kitti_flow};
 use super::pfm::{decode_pfm_flow, write_pfm_flow};
 use crate::error::{Error, Result};
@@ -68,28 +68,10 @@ pub fn write_flow(path: &Path, flow: &Flow) -> Result<()> {
     }
 }
 
-/// Whether a vector read from a file means "unknown": a component that is not finite or whose
-/// magnitude is at least `1e9` (the Middlebury marker; FlyingThings3D and Sintel use it too).
-pub fn is_unknown(u: f32, v: f32) -> bool {
-    !(u.abs() < UNKNOWN_THRESHOLD && v.abs() < UNKNOWN_THRESHOLD)
-}
-
-/// Sets both components of every unknown vector ([`is_unknown`]) to NaN in planar flow data
-/// `[u plane, v plane]`.
-pub(crate) fn unknown_to_nan(data: &mut [f32]) {
-    let n = data.len() / 2;
-    let (u, v) = data.split_at_mut(n);
-    for (a, b) in u.iter_mut().zip(v.iter_mut()) {
-        if is_unknown(*a, *b) {
-            *a = f32::NAN;
-            *b = f32::NAN;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::is_unknown;
 
     #[test]
     fn dispatch_round_trips() {

@@ -6,8 +6,8 @@ use std::path::Path;
 use image::{ColorType, DynamicImage, ImageBuffer, ImageDecoder, ImageFormat};
 
 use super::atomic::{read_bytes, write_bytes_atomic};
-use super::flow_file::is_unknown;
 use super::image::{decode_raster, open_raster};
+use super::unknown::is_unknown;
 use crate::error::{Error, Result};
 use crate::types::Flow;
 

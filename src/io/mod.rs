@@ -18,12 +18,13 @@ pub mod npy;
 pub mod pfm;
 pub mod python;
 mod raster_guard;
+pub mod unknown;
 
 pub use atomic::{read_bytes, write_atomic, write_bytes_atomic};
 pub use budget::{DEFAULT_MAX_PIXELS, max_pixels, set_max_pixels};
 pub use exr::{decode_exr, decode_flow_exr, read_exr, read_flow_exr, write_exr, write_flow_exr};
 pub use flo::{decode_flo, encode_flo, read_flo, write_flo};
-pub use flow_file::{decode_flow, is_unknown, read_flow, write_flow};
+pub use flow_file::{decode_flow, read_flow, write_flow};
 pub use image::{
     BitDepth, decode_image, frame_files, image_files, read_image, read_image_pair, write_image,
 };
@@ -31,6 +32,7 @@ pub use json::{in_config, read_json};
 pub use kitti::{decode_kitti_flow, read_kitti_flow, write_kitti_flow};
 pub use npy::{decode_npy, read_npy, write_npy};
 pub use pfm::{decode_pfm, decode_pfm_flow, read_pfm, read_pfm_flow, write_pfm, write_pfm_flow};
+pub use unknown::is_unknown;
 
 use std::path::Path;
 

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use super::atomic::{read_bytes, write_bytes_atomic};
 use super::budget;
-use super::flow_file::unknown_to_nan;
+use super::unknown::unknown_to_nan;
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
 

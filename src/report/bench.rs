@@ -4,11 +4,11 @@
 
 use serde::Serialize;
 
+pub use super::timing::median_ms;
 use crate::error::{Error, Result};
 use crate::imaging::convolve::{FftConvolver, convolve_direct, convolve_reference};
 use crate::imaging::{Camera, CameraConfig, psf_source};
 use crate::optics::Psf;
-pub use crate::report_timing::median_ms;
 use crate::scene::texture::procedural;
 use crate::types::Image;
 

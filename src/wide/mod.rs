@@ -1,7 +1,6 @@
 //! The wide-angle metalens array (Notes S2, S3, S16): layout, lens mapping, raw frames,
 //! calibration from dot grids, stitching to one 135° image.
 
-pub mod bench;
 pub mod calibrate;
 pub mod layout;
 pub mod polyfit;

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
-use super::scale::resize_flow;
+use super::resample::resize_flow;
 
 /// How a flow estimate is refined after the network.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -5,6 +5,7 @@ pub mod checkpoint;
 pub mod clip;
 pub mod config;
 pub mod log;
+pub mod options;
 pub mod param_ids;
 pub mod prefetch;
 pub mod resume;
@@ -17,4 +18,5 @@ pub mod trainer;
 pub mod validate;
 
 pub use config::TrainConfig;
-pub use trainer::{TrainOptions, TrainSummary, train};
+pub use options::{TrainOptions, TrainSummary};
+pub use trainer::train;

@@ -5,7 +5,7 @@
 
 use super::checkpoint::{self, CheckpointState};
 use super::config::TrainConfig;
-use super::trainer::{TrainOptions, TrainSummary};
+use super::options::{TrainOptions, TrainSummary};
 use crate::error::{Error, Result};
 use crate::flow::data::DataFingerprint;
 use crate::flow::model::{Mms, MmsConfig};

@@ -6,9 +6,9 @@ use burn::prelude::*;
 
 use super::checkpoint::{self, CheckpointState};
 use super::config::TrainConfig;
+use super::options::TrainOptions;
 use super::setup::{Run, record_error};
 use super::stamp::TrainingStamp;
-use super::trainer::TrainOptions;
 use crate::error::Result;
 use crate::flow::data::DataFingerprint;
 use crate::flow::model::MmsConfig;

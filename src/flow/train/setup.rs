@@ -11,7 +11,7 @@ use burn::tensor::Bytes;
 use super::checkpoint::Loaded;
 use super::config::TrainConfig;
 use super::log::TrainLog;
-use super::trainer::TrainOptions;
+use super::options::TrainOptions;
 use crate::error::{Error, Result};
 use crate::flow::data::FlowDataset;
 use crate::flow::model::{Mms, MmsConfig};

@@ -9,7 +9,7 @@ use burn::prelude::*;
 use super::checkpoint;
 use super::clip::clip_global_norm;
 use super::config::TrainConfig;
-use super::trainer::TrainOptions;
+use super::options::TrainOptions;
 use crate::error::{Error, Result};
 use crate::flow::data::{Batch, Example, FlowDataset, make_example};
 use crate::flow::loss::{mean_epe, moving_weights, sequence_loss};

@@ -13,18 +13,16 @@
 //! [`super::validate`], [`super::save`] (checkpoints) and [`super::log`].
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::Serialize;
 
-use super::budget::{Budget, StopReason};
+use super::budget::Budget;
 use super::checkpoint;
 use super::config::TrainConfig;
 use super::log::LogRow;
+use super::options::{TrainOptions, TrainSummary};
 use super::prefetch::Prefetch;
 use super::schedule::one_cycle;
 use super::setup::WarmRestart;
@@ -32,55 +30,6 @@ use super::stamp::{TrainingStamp, restart_factor};
 use super::{resume, save, setup, step, validate};
 use crate::error::{Error, Result};
 use crate::flow::data::{DataFingerprint, FlowDataset};
-
-/// Where and how to run.
-#[derive(Clone, Debug)]
-pub struct TrainOptions {
-    pub data: PathBuf,
-    pub out: PathBuf,
-    pub resume: bool,
-    /// Overrides the config's step count (not allowed to change it on resume).
-    pub steps: Option<usize>,
-    /// Stop (with a checkpoint) after this many steps in this session, keeping the schedule
-    /// of the whole run: training in chunks, continued with `resume`.
-    pub stop_after: Option<usize>,
-    pub progress: bool,
-    /// Where to train (`Device::flex()` by default, see [`crate::flow::device::select`]).
-    pub device: Device,
-    /// Further devices for data-parallel training (`--devices a,b,…`: `device` is the first);
-    /// each step's batch is spread over all of them and the result does not depend on how
-    /// many there are (see [`step::take_parallel`]).
-    pub replicas: Vec<Device>,
-    /// Start a new run from these weights (fine-tuning) instead of a random initialisation.
-    pub init: Option<PathBuf>,
-    /// Start a new run where these weights' run stood (their training stamp: same config,
-    /// same schedule and data order), with a learning-rate warm-up: a warm restart when the
-    /// checkpoint is gone.
-    pub continue_from: Option<PathBuf>,
-    /// End the session (with a checkpoint) before the step that would pass this much time.
-    pub time_budget: Option<Duration>,
-    /// Set by a signal handler: end the session (with a checkpoint) before the next step.
-    pub stop: Option<Arc<AtomicBool>>,
-    /// Write a checkpoint when this much time has passed since the last one.
-    pub checkpoint_interval: Duration,
-}
-
-/// What a run ended with.
-#[derive(Clone, Debug, Serialize)]
-pub struct TrainSummary {
-    pub steps: usize,
-    /// Loss of the last step taken (`None` when no step was ever taken).
-    pub last_loss: Option<f64>,
-    pub best_val_epe: Option<f64>,
-    pub train_seconds: f64,
-    pub parameters: usize,
-    /// The run had already taken all its steps: nothing was trained in this call.
-    pub already_complete: bool,
-    /// Training pairs seen over the whole run (steps × batch).
-    pub pairs_seen: u64,
-    /// Why the session ended before the run's last step and `--stop-after`, if it did.
-    pub stopped: Option<StopReason>,
-}
 
 /// Trains (or resumes) a run. `config` is the run's config: required to be equal to the stored
 /// one when resuming (`None` then means "the stored one"), the defaults when `None` on a new run.

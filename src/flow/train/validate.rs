@@ -5,8 +5,8 @@
 use burn::prelude::*;
 
 use super::config::TrainConfig;
+use super::options::TrainOptions;
 use super::stamp::TrainingStamp;
-use super::trainer::TrainOptions;
 use crate::error::Result;
 use crate::flow::data::FlowDataset;
 use crate::flow::eval::evaluate_dataset;

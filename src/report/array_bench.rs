@@ -3,12 +3,12 @@
 
 use serde::Serialize;
 
-use super::calibrate::{calibrate_from_dots, detect_dots};
-use super::layout::ArrayLayout;
-use super::stitch::Stitcher;
+use super::timing::median_ms;
 use crate::error::{Error, Result};
-use crate::report_timing::median_ms;
 use crate::types::Image;
+use crate::wide::calibrate::{calibrate_from_dots, detect_dots};
+use crate::wide::layout::ArrayLayout;
+use crate::wide::stitch::Stitcher;
 
 /// One row of the table.
 #[derive(Clone, Debug, Serialize)]
@@ -41,7 +41,7 @@ pub fn orders_table(
         let calib = calibrate_from_dots(layout, &dots, per_side, Some(order))?;
         let stitcher = Stitcher::new(&calib)?;
         let stitch_ms = pool.install(|| median_ms(reps, || stitcher.apply(raw_grid)));
-        let worst = |f: &dyn Fn(&super::calibrate::LensCalibration) -> f64| {
+        let worst = |f: &dyn Fn(&crate::wide::calibrate::LensCalibration) -> f64| {
             calib.lenses.iter().map(f).fold(0.0, f64::max)
         };
         rows.push(OrderRow {

@@ -7,9 +7,9 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::infer::Predictor;
-use super::viz::flow_to_image;
 use crate::error::{Error, Result};
+use crate::flow::infer::Predictor;
+use crate::flow::viz::flow_to_image;
 use crate::imaging::pipeline::Camera;
 use crate::imaging::{CameraConfig, psf_source};
 use crate::rng;
