@@ -43,3 +43,36 @@ fn every_experiment_config_is_valid() {
     assert!(generator >= 10, "found only {generator} generator configs");
     assert!(train >= 2 && clips >= 4 && tracking >= 3);
 }
+
+/// `experiments/README.md` names every config (also under `campaign/`) and every record in
+/// `results/`: a file named nowhere is a file nobody can find or trust.
+#[test]
+fn every_experiment_file_is_named_in_the_readme() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let readme = std::fs::read_to_string(dir.join("README.md")).expect("experiments/README.md");
+    let mut files = Vec::new();
+    let mut stack = vec![dir.clone()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).expect("a readable folder") {
+            let p = entry.expect("a folder entry").path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().is_some_and(|n| n != "README.md") {
+                files.push(p);
+            }
+        }
+    }
+    let unnamed: Vec<String> = files
+        .iter()
+        .map(|p| p.strip_prefix(&dir).expect("under experiments/"))
+        .filter(|rel| {
+            let name = rel.file_name().expect("a file name").to_string_lossy();
+            !readme.contains(&*rel.to_string_lossy()) && !readme.contains(&*name)
+        })
+        .map(|rel| rel.display().to_string())
+        .collect();
+    assert!(
+        unnamed.is_empty(),
+        "experiments/README.md names none of: {unnamed:?}"
+    );
+}
