@@ -32,7 +32,11 @@ fn every_experiment_config_is_valid() {
             // Tracking settings for `pins track --config` (all keys, for users to copy).
             let cfg = pins::track::config::TrackConfig::from_file(&p).unwrap_or_else(fail(&p));
             let profile = cfg.profile.expect("an example names its profile");
-            assert_eq!(cfg, pins::track::config::TrackConfig::profile(profile), "{name}");
+            assert_eq!(
+                cfg,
+                pins::track::config::TrackConfig::profile(profile),
+                "{name}"
+            );
             settings += 1;
         } else if name.starts_with("bench_real") {
             pins::report::bench_real::config::load(&p).unwrap_or_else(fail(&p));

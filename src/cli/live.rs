@@ -296,6 +296,7 @@ fn settings(a: &LiveArgs) -> Result<TrackConfig> {
     if let Some(h) = &a.horizons {
         cfg.horizons = h.clone();
     }
+    cfg.validate().map_err(crate::cli::track::flag_named)?;
     Ok(cfg)
 }
 

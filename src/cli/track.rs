@@ -373,5 +373,29 @@ fn settings(a: &RunArgs) -> Result<TrackConfig> {
     if let Some(h) = &a.horizons {
         cfg.horizons = h.clone();
     }
+    cfg.validate().map_err(flag_named)?;
     Ok(cfg)
+}
+
+/// A settings error, with the flag that sets the key where there is one (the file's own
+/// values were checked when it was read).
+pub(crate) fn flag_named(e: pins::Error) -> anyhow::Error {
+    const FLAGS: [(&str, &str); 5] = [
+        ("flow.scale", "--scale"),
+        ("flow.iters", "--iters"),
+        ("flow.weights", "--weights"),
+        ("tracker.confirm", "--confirm"),
+        ("horizons", "--horizons"),
+    ];
+    match e {
+        pins::Error::Invalid { what, reason } => {
+            let flag = FLAGS
+                .iter()
+                .find(|(k, _)| *k == what)
+                .map(|(_, f)| format!(" ({f})"))
+                .unwrap_or_default();
+            anyhow::anyhow!("invalid {what}{flag}: {reason}")
+        }
+        e => e.into(),
+    }
 }
