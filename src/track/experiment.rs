@@ -100,9 +100,13 @@ impl ExperimentConfig {
         }
     }
 
-    /// The run options of predictor `p`: `track` with its `mtp` keys, settled by the profile.
+    /// The run options of predictor number `index`: `track` with its `mtp` keys, settled by
+    /// the profile.
     pub fn options(&self, index: usize) -> Result<TrackOptions> {
-        let p = &self.predictors[index];
+        let p = self
+            .predictors
+            .get(index)
+            .ok_or_else(|| Error::invalid("predictors", format!("no predictor {index}")))?;
         let mut track = self
             .track
             .with_mtp(&p.mtp, &format!("predictors[{index}].mtp ({})", p.name))?;
