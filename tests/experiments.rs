@@ -1,14 +1,14 @@
 //! Every shipped experiment config parses, validates and names only known keys: training
-//! configs (`train_*` with a model), tracking clips and tracking experiments (`track_*`), the
-//! real-data benchmark (`bench_real*`), Note S12's detection limits (`s12_limits*`) and generator
-//! configs (everything else).
+//! configs (`train_*` with a model), tracking settings (`track_config_*`), tracking clips and
+//! tracking experiments (`track_*`), the real-data benchmark (`bench_real*`), Note S12's
+//! detection limits (`s12_limits*`) and generator configs (everything else).
 
 use std::path::Path;
 
 #[test]
 fn every_experiment_config_is_valid() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
-    let (mut generator, mut train, mut clips, mut tracking) = (0, 0, 0, 0);
+    let (mut generator, mut train, mut clips, mut tracking, mut settings) = (0, 0, 0, 0, 0);
     for entry in std::fs::read_dir(&dir).unwrap() {
         let p = entry.unwrap().path();
         if p.extension().is_none_or(|e| e != "json") {
@@ -28,6 +28,16 @@ fn every_experiment_config_is_valid() {
                 pins::track::experiment::ExperimentConfig::from_file(&p).unwrap_or_else(fail(&p));
             assert!(!cfg.clips.is_empty() && !cfg.predictors.is_empty());
             tracking += 1;
+        } else if name.starts_with("track_config") {
+            // Tracking settings for `pins track --config` (all keys, for users to copy).
+            let cfg = pins::track::config::TrackConfig::from_file(&p).unwrap_or_else(fail(&p));
+            let profile = cfg.profile.expect("an example names its profile");
+            assert_eq!(
+                cfg,
+                pins::track::config::TrackConfig::profile(profile),
+                "{name}"
+            );
+            settings += 1;
         } else if name.starts_with("bench_real") {
             pins::report::bench_real::config::load(&p).unwrap_or_else(fail(&p));
         } else if name.starts_with("s12_limits") {
@@ -41,7 +51,7 @@ fn every_experiment_config_is_valid() {
         }
     }
     assert!(generator >= 10, "found only {generator} generator configs");
-    assert!(train >= 2 && clips >= 4 && tracking >= 3);
+    assert!(train >= 2 && clips >= 4 && tracking >= 3 && settings >= 1);
 }
 
 /// `experiments/README.md` names every config (also under `campaign/`) and every record in

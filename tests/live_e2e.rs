@@ -257,4 +257,52 @@ fn live_on_a_folder_tracks_as_pins_track_does() {
         }
     }
     assert!(compared >= 3, "too few tracked frames compared: {compared}");
+
+    // The same settings from one config file: `pins live --config` and `pins track --config`
+    // give what their flags gave.
+    let cfg = dir.path().join("track.json");
+    std::fs::write(
+        &cfg,
+        r#"{"profile": "estimated", "flow": {"iters": 4}, "tracker": {"confirm": 2},
+            "horizons": [1, 5]}"#,
+    )
+    .unwrap();
+    let (live_cfg, track_cfg) = (dir.path().join("live_cfg"), dir.path().join("track_cfg"));
+    for (args, out) in [
+        (vec!["live", "--quiet", "--fps", "15"], &live_cfg),
+        (vec!["track"], &track_cfg),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_pins"))
+            .args(args)
+            .arg("--frames")
+            .arg(&frames)
+            .arg("--config")
+            .arg(&cfg)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let objects = |path: &std::path::Path| -> Vec<serde_json::Value> {
+        std::fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["objects"].clone())
+            .collect()
+    };
+    assert_eq!(
+        objects(&live_cfg.join("tracks.jsonl")),
+        objects(&live_out.join("tracks.jsonl"))
+    );
+    let without_time = |path: &std::path::Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        v["ms_per_frame"] = serde_json::Value::Null;
+        v
+    };
+    assert_eq!(
+        without_time(&track_cfg.join("tracks.json")),
+        without_time(&track_out.join("tracks.json"))
+    );
 }

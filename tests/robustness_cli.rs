@@ -234,17 +234,19 @@ fn out_of_range_flags_are_named() {
     for k in 0..3 {
         pins::io::write_flo(&flows.join(format!("{k:03}.flo")), &Flow::zeros(8, 8)).unwrap();
     }
-    for value in ["-1", "NaN", "inf"] {
+    let settings = t.join("settings.json");
+    for value in ["-1", "-0.5", "\"x\"", "null"] {
+        fs::write(&settings, format!(r#"{{"threshold": {value}}}"#)).unwrap();
         let err = failed(&pins(&[
             "track",
             "--flows",
             flows.to_str().unwrap(),
             "--out",
             t.join("tr").to_str().unwrap(),
-            "--threshold",
-            value,
+            "--config",
+            settings.to_str().unwrap(),
         ]));
-        assert!(err.contains("--threshold"), "{value}: {err}");
+        assert!(err.contains("threshold"), "{value}: {err}");
         assert!(!t.join("tr/tracks.json").exists());
     }
 }

@@ -86,33 +86,121 @@ fn tracks_two_objects_and_rejects_bad_folders() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("0099.flo"));
     assert!(!d.path().join("x").join("tracks.json").exists());
 
-    // Bad settings are refused, naming the setting, before any output: alignment weights
-    // (three, finite, non-negative, not all zero), the fits' samples per order (at least 1),
-    // the trend's reach and the split's separation (finite, non-negative).
-    for (flag, value, says) in [
-        ("--align-weights", "1,2", "three weights"),
-        ("--align-weights", "1,-1,1", "align_weights"),
-        ("--align-weights", "0,0,0", "align_weights"),
-        ("--samples-per-order", "0", "samples_per_order"),
-        ("--trend-reach", "-1", "mtp.trend_reach"),
-        ("--trend-reach", "inf", "mtp.trend_reach"),
-        ("--split-separation", "-0.5", "detect.place.split"),
-        ("--split-separation", "NaN", "detect.place.split"),
+    // Bad settings in a config file are refused, naming the file and the key, before any
+    // output: alignment weights (three, finite, non-negative, not all zero), the fits' samples
+    // per order (at least 1), the trend's reach and the split's separation (non-negative), an
+    // unknown key, and a bad value given by a flag.
+    let config = d.path().join("settings.json");
+    for (text, flags, says) in [
+        (
+            r#"{"detect": {"align_weights": [1, 2]}}"#,
+            &[][..],
+            "detect.align_weights",
+        ),
+        (
+            r#"{"detect": {"align_weights": [1, -1, 1]}}"#,
+            &[],
+            "align_weights",
+        ),
+        (
+            r#"{"detect": {"align_weights": [0, 0, 0]}}"#,
+            &[],
+            "align_weights",
+        ),
+        (
+            r#"{"tracker": {"mtp": {"samples_per_order": 0}}}"#,
+            &[],
+            "samples_per_order",
+        ),
+        (
+            r#"{"tracker": {"mtp": {"trend_reach": -1}}}"#,
+            &[],
+            "mtp.trend_reach",
+        ),
+        (
+            r#"{"detect": {"place": {"split": -0.5}}}"#,
+            &[],
+            "detect.place.split",
+        ),
+        (r#"{"tracker": {"confirmm": 3}}"#, &[], "tracker.confirmm"),
+        (
+            r#"{"profile": "exact"}"#,
+            &["--confirm", "0"],
+            "tracker.confirm",
+        ),
+        (r#"{"profile": "exact"}"#, &["--horizons", "0"], "horizons"),
+        (
+            r#"{"profile": "exact"}"#,
+            &["--profile", "mms"],
+            "exact or estimated",
+        ),
     ] {
+        std::fs::write(&config, text).unwrap();
         let out = d.path().join("refused");
         let o = Command::new(env!("CARGO_BIN_EXE_pins"))
             .args(["track", "--flows", flows.to_str().unwrap(), "--out"])
             .arg(&out)
-            .arg(format!("{flag}={value}"))
+            .arg("--config")
+            .arg(&config)
+            .args(flags)
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(
-            !o.status.success() && err.contains(says),
-            "{flag} {value}: {err}"
-        );
-        assert!(!out.exists(), "{flag} {value}");
+        assert!(!o.status.success() && err.contains(says), "{text}: {err}");
+        if flags.is_empty() {
+            assert!(err.contains("settings.json"), "{text}: {err}");
+        }
+        assert!(!out.exists(), "{text}");
     }
+}
+
+/// The flags override the config file, which overrides the profile: `--confirm 2` gives the
+/// tracks of the file that says it, and without it the profile's 5 hits report fewer frames.
+#[test]
+fn flags_override_the_config_file() {
+    let d = tempfile::tempdir().unwrap();
+    let flows = d.path().join("flows");
+    for n in 0..20 {
+        let f = square_flow(60, 100, &[(20.0, 30.0, 3.0, 0.0)], n);
+        pins::io::write_flo(&flows.join(format!("{n:04}.flo")), &f).unwrap();
+    }
+    let run = |name: &str, config: &str, flags: &[&str]| {
+        let file = d.path().join(format!("{name}.json"));
+        std::fs::write(&file, config).unwrap();
+        let out = d.path().join(name);
+        ok(&pins(
+            &[
+                &[
+                    "track",
+                    "--flows",
+                    flows.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--no-plots",
+                    "--config",
+                    file.to_str().unwrap(),
+                ],
+                flags,
+            ]
+            .concat(),
+        ));
+        let mut v = json(&out.join("tracks.json"));
+        v["ms_per_frame"] = serde_json::Value::Null;
+        v
+    };
+    let two = run(
+        "two",
+        r#"{"tracker": {"confirm": 2}, "horizons": [1, 5]}"#,
+        &[],
+    );
+    let flag = run("flag", r#"{"horizons": [1, 5]}"#, &["--confirm", "2"]);
+    assert_eq!(two, flag);
+    let five = run("five", r#"{"horizons": [1, 5]}"#, &["--profile", "exact"]);
+    let frames = |v: &serde_json::Value| v["objects"][0]["frames"].as_array().map(Vec::len);
+    assert!(
+        frames(&two) > frames(&five),
+        "confirmed after 2 hits, not 5: {two} {five}"
+    );
 }
 
 /// Writes a clip config and renders it with `pins track render`.
@@ -466,7 +554,7 @@ fn operating_points_give_the_error_against_run_time() {
         .unwrap();
     };
     write(
-        r#""flow": "mms", "confirm": 2,
+        r#""flow": "mms", "track": {"tracker": {"confirm": 2}},
            "operating_points": [{"scale": 1.0, "iters": 2}, {"scale": 0.5, "iters": 3},
                                 {"scale": 1.5, "iters": 2}]"#,
     );
@@ -513,9 +601,23 @@ fn operating_points_give_the_error_against_run_time() {
             r#""flow": "mms", "operating_points": [{"scale": 4.5, "iters": 2}]"#,
             "must be in (0, 4]",
         ),
-        (r#""scale": 1.5"#, "only MMS flow runs at a scale"),
-        (r#""flow": "mms", "scale": 0"#, "must be in (0, 4]"),
-        (r#""max_gate_factor": 0.5"#, "max_gate_factor"),
+        (
+            r#""track": {"flow": {"scale": 1.5}}"#,
+            "only MMS flow runs at a scale",
+        ),
+        (
+            r#""flow": "mms", "track": {"flow": {"scale": 0}}"#,
+            "must be in (0, 4]",
+        ),
+        (
+            r#""track": {"tracker": {"max_gate_factor": 0.5}}"#,
+            "tracker.max_gate_factor",
+        ),
+        (
+            r#""track": {"tracker": {"confrm": 2}}"#,
+            "track.tracker.confrm",
+        ),
+        (r#""confirm": 2"#, "unknown field `confirm`"),
         (
             r#""flow": "mms", "operating_points": [{"scale": 0.5, "iters": 0}]"#,
             "iters must be",
@@ -561,7 +663,7 @@ fn a_dis_experiment_tracks_on_the_peer_flow() {
         &cfg,
         r#"{"clips": [{"name": "line", "config": "line.json"}],
             "predictors": [{"name": "cv", "mtp": {"method": "constant_velocity"}}],
-            "horizons": [1], "flow": "dis", "confirm": 2}"#,
+            "horizons": [1], "flow": "dis", "track": {"tracker": {"confirm": 2}}}"#,
     )
     .unwrap();
     let out = d.path().join("out");

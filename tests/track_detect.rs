@@ -11,6 +11,7 @@ use pins::Flow;
 use pins::scene::truth::Truth;
 use pins::track::eval::{TrackReport, evaluate};
 use pins::track::run::Tracks;
+use serde_json::json;
 
 mod common;
 use common::{ok, pins, render_disc_line};
@@ -71,6 +72,14 @@ fn write_flows(clip: &Path, name: &str, affine: bool) -> std::path::PathBuf {
     dir
 }
 
+/// Writes tracking settings (a `TrackConfig`, for `--config`) to `dir/name.json`.
+fn settings(dir: &Path, name: &str, config: serde_json::Value) -> String {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(format!("{name}.json"));
+    std::fs::write(&path, config.to_string()).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
 fn track(args: &[&str], out: &Path, truth: &Truth) -> (TrackReport, Tracks) {
     let mut all = vec!["track", "--out", out.to_str().unwrap(), "--no-plots"];
     all.extend_from_slice(args);
@@ -100,8 +109,9 @@ fn spurious_blobs_are_rejected_and_the_mover_is_tracked() {
 
     // Magnitude alone, confirmed at the first hit: every blob becomes a track.
     let out = d.path().join("naive");
+    let cfg = settings(d.path(), "naive", json!({"detect": {"background": "none"}}));
     let (r, _) = track(
-        &["--flows", flows, "--confirm", "1", "--background", "none"],
+        &["--flows", flows, "--confirm", "1", "--config", &cfg],
         &out,
         &truth,
     );
@@ -178,16 +188,22 @@ fn the_background_model_removes_a_global_affine_motion() {
     let truth = render(&clip, 977);
     let moving = write_flows(&clip, "moving", true);
     let flows = moving.to_str().unwrap();
+    let cfg = settings(d.path(), "affine", json!({"noise_k": 0.0}));
     let (r, _) = track(
-        &["--flows", flows, "--noise-k", "0"],
+        &["--flows", flows, "--config", &cfg],
         &d.path().join("affine"),
         &truth,
     );
     assert_one_good_track(&r, "affine model");
     // Without the model (and the per-frame noise floor), the whole frame moves: no track
     // follows the object.
+    let cfg = settings(
+        d.path(),
+        "none",
+        json!({"noise_k": 0.0, "detect": {"background": "none"}}),
+    );
     let (r, _) = track(
-        &["--flows", flows, "--background", "none", "--noise-k", "0"],
+        &["--flows", flows, "--config", &cfg],
         &d.path().join("none"),
         &truth,
     );
@@ -250,8 +266,9 @@ fn a_slow_mover_under_the_flow_jitter_is_tracked_with_the_change_test() {
         }
         let (flows, frames) = (dir.to_str().unwrap(), clip.join("frames"));
         let frames = frames.to_str().unwrap();
+        let cfg = settings(d.path(), "change", json!({"detect": {"change": true}}));
         let (r, tracks) = track(
-            &["--flows", flows, "--frames", frames, "--change-test", "on"],
+            &["--flows", flows, "--frames", frames, "--config", &cfg],
             &d.path().join("change"),
             &truth,
         );
@@ -319,19 +336,24 @@ fn a_global_bias_on_a_still_scene_is_not_the_background() {
         pins::io::write_flo(&dir.join(format!("{n:05}.flo")), &f).unwrap();
     }
     let frames = clip.join("frames");
-    let args = [
-        "--flows",
-        dir.to_str().unwrap(),
-        "--frames",
-        frames.to_str().unwrap(),
-        "--change-test",
-        "on",
-    ];
-    let (r, _) = track(&args, &d.path().join("checked"), &truth);
+    let run = |name: &str, detect: serde_json::Value| {
+        let cfg = settings(d.path(), name, json!({ "detect": detect }));
+        let args = [
+            "--flows",
+            dir.to_str().unwrap(),
+            "--frames",
+            frames.to_str().unwrap(),
+            "--config",
+            &cfg,
+        ];
+        track(&args, &d.path().join(name), &truth)
+    };
+    let (r, _) = run("checked", json!({"change": true}));
     assert_one_good_track(&r, "background checked by the frames");
-    let mut unchecked = args.to_vec();
-    unchecked.push("--no-background-check");
-    let (r, _) = track(&unchecked, &d.path().join("unchecked"), &truth);
+    let (r, _) = run(
+        "unchecked",
+        json!({"change": true, "check_background": false}),
+    );
     // Against the biased fit the frames changed everywhere the scene has texture: the mover
     // is lost among them, or a still patch is tracked.
     let spurious = r.objects.iter().filter(|o| o.truth_index.is_none()).count();
@@ -393,15 +415,19 @@ fn the_still_background_places_a_jittering_flow_region_on_its_object() {
     }
     let frames = clip.join("frames");
     let debug = d.path().join("debug");
+    // The displaced region is not where the frames changed: no photometric test.
+    let cfg = settings(
+        d.path(),
+        "place",
+        json!({"detect": {"place": {"enabled": true}, "photometric": false}}),
+    );
     let args = [
         "--flows",
         dir.to_str().unwrap(),
         "--frames",
         frames.to_str().unwrap(),
-        "--place",
-        "on",
-        // The displaced region is not where the frames changed.
-        "--no-photometric",
+        "--config",
+        &cfg,
         "--debug",
         debug.to_str().unwrap(),
     ];
@@ -429,11 +455,11 @@ fn the_still_background_places_a_jittering_flow_region_on_its_object() {
     );
 }
 
-/// A flow that gives the disc half its motion (an estimated flow on a small mover): with
-/// `--align on` each region carries the motion the frames confirm, nearer the object's true
-/// displacement than the mean flow, which is off by half of it (2.65 px), on every clip and
-/// by about half over all (0.9–1.8 px here: through the camera's noise these 20-px discs are
-/// barely visible, and the alignment is noise-limited).
+/// A flow that gives the disc half its motion (an estimated flow on a small mover): with the
+/// alignment on (`detect.align`) each region carries the motion the frames confirm, nearer the
+/// object's true displacement than the mean flow, which is off by half of it (2.65 px), on
+/// every clip and by about half over all (0.9–1.8 px here: through the camera's noise these
+/// 20-px discs are barely visible, and the alignment is noise-limited).
 /// The clip's exact flows times `k` (a flow that gives the mover a share of its motion), in
 /// `clip/scaled`.
 fn scaled_flows(clip: &Path, k: f32) -> std::path::PathBuf {
@@ -454,7 +480,7 @@ fn scaled_flows(clip: &Path, k: f32) -> std::path::PathBuf {
 
 /// A flow that gives the disc a third of its motion: the centre moves three times as far as
 /// the flows say, so confirmation on the flow holds the track back for as long as it is seen;
-/// the motion the frames confirm (`--align`) lets it through, on seeds never tuned on.
+/// the motion the frames confirm (`detect.align`) lets it through, on seeds never tuned on.
 #[test]
 fn a_mover_its_flow_underestimates_is_confirmed_on_the_frames() {
     for seed in [6161, 6262] {
@@ -464,16 +490,20 @@ fn a_mover_its_flow_underestimates_is_confirmed_on_the_frames() {
         let flows = scaled_flows(&clip, 1.0 / 3.0);
         let frames = clip.join("frames");
         let run = |align: &str| {
+            // A third of the motion does not explain the change: the photometric test would
+            // refuse the region; confirmation is what is checked here.
+            let cfg = settings(
+                d.path(),
+                align,
+                json!({"detect": {"align": align == "on", "photometric": false}}),
+            );
             let args = [
                 "--flows",
                 flows.to_str().unwrap(),
                 "--frames",
                 frames.to_str().unwrap(),
-                "--align",
-                align,
-                // A third of the motion does not explain the change: the test would refuse
-                // the region; confirmation is what is checked here.
-                "--no-photometric",
+                "--config",
+                &cfg,
             ];
             track(&args, &d.path().join(align), &truth).0
         };
@@ -498,15 +528,20 @@ fn the_alignment_recovers_the_motion_a_flow_falls_short_of() {
         let dir = scaled_flows(&clip, 0.5);
         let frames = clip.join("frames");
         let debug = d.path().join("debug");
+        // Half the motion does not explain the change: the photometric test would refuse the
+        // region.
+        let cfg = settings(
+            d.path(),
+            "align",
+            json!({"detect": {"align": true, "photometric": false}}),
+        );
         let args = [
             "--flows",
             dir.to_str().unwrap(),
             "--frames",
             frames.to_str().unwrap(),
-            "--align",
-            "on",
-            // Half the motion does not explain the change: the test would refuse the region.
-            "--no-photometric",
+            "--config",
+            &cfg,
             "--debug",
             debug.to_str().unwrap(),
         ];

@@ -87,11 +87,13 @@ fn an_object_the_flow_loses_for_20_frames_keeps_its_id() {
             seen.iter().any(|&n| n > HIDDEN.end),
             "seed {seed}: {seen:?}"
         );
+        let off_cfg = d.path().join("no_reid.json");
+        std::fs::write(&off_cfg, r#"{"tracker": {"reid_frames": 0}}"#).unwrap();
         let (off, _) = track(
             &frames,
             &flows,
             &d.path().join("off"),
-            &["--reid-frames", "0"],
+            &["--config", off_cfg.to_str().unwrap()],
             &truth,
         );
         assert_eq!(off.objects.len(), 2, "seed {seed}: {off:?}");

@@ -15,6 +15,7 @@ use pins::live::record::{Lines, Recorder, Replay};
 use pins::live::serve::{ViewState, serve};
 use pins::live::url::HttpUrl;
 use pins::live::view::render_view;
+use pins::track::config::{Profile, TrackConfig};
 
 #[derive(clap::Args)]
 pub(crate) struct LiveArgs {
@@ -36,24 +37,23 @@ pub(crate) struct LiveArgs {
     /// Array calibration (from `pins array calibrate`): frames are stitched to the wide image.
     #[arg(long)]
     calib: Option<PathBuf>,
-    /// MMS weights: a file, or the built-in mms-small (stage 3, the default here), mms-small-real or default (= mms-small-real).
-    #[arg(long, default_value = pins::flow::infer::TRACK_WEIGHTS)]
-    weights: String,
+    /// Tracking settings (a JSON TrackConfig, as for `pins track`; the estimated profile
+    /// unless it names another); the flags below override it.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// The defaults for an estimated flow (the default here) or an exact one.
+    #[arg(long)]
+    profile: Option<Profile>,
+    /// MMS weights (flow.weights): a file, or the built-in mms-small (the default here),
+    /// mms-small-real or default (= mms-small-real).
+    #[arg(long)]
+    weights: Option<String>,
     /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// MMS refinement iterations (default: the weights' own).
+    /// MMS refinement iterations (flow.iters; default: the weights' own).
     #[arg(long)]
     iters: Option<usize>,
-    /// What follows MMS: none, variational (the coarse-to-fine variational refinement) or a
-    /// .json file of its settings. None by default here: on the tracking clips the refinement
-    /// pulls a small, dark mover's flow towards its background (docs/tracking.md).
-    #[arg(long, default_value = "none")]
-    refine: String,
-    /// Where MMS starts: zero (the default here, as the tracking clips were measured) or
-    /// coarse (from its own flow at half resolution).
-    #[arg(long, default_value = "zero")]
-    start: String,
     /// Downscale factor in (0, 1] applied (after stitching) before the flow.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
@@ -84,21 +84,14 @@ pub(crate) struct LiveArgs {
     /// Seconds to wait for the camera's answer (a busy camera never answers).
     #[arg(long, default_value_t = 5.0)]
     response_timeout: f64,
-    /// Prediction horizons in frames.
-    #[arg(long, value_delimiter = ',', default_value = "1,5,15")]
-    horizons: Vec<usize>,
-    /// Flow magnitude (px/frame) above which a pixel is moving.
-    #[arg(long, default_value_t = 0.5)]
-    threshold: f64,
-    /// Smallest region (pixels) that is an object.
-    #[arg(long, default_value_t = 20)]
-    min_area: usize,
-    /// Noise floor: median flow magnitude plus K robust deviations; 0 turns it off.
-    #[arg(long, default_value_t = 3.0)]
-    noise_k: f64,
-    /// Detections moving as their flow says before a track is reported.
-    #[arg(long, default_value_t = 5)]
-    confirm: usize,
+    /// Prediction horizons in frames (horizons). Default: the config's with --config, else
+    /// 1,5,15 (LIVE_HORIZONS).
+    #[arg(long, value_delimiter = ',')]
+    horizons: Option<Vec<usize>>,
+    /// Detections moving as their motion says before a track is reported (tracker.confirm;
+    /// default 5).
+    #[arg(long)]
+    confirm: Option<usize>,
     /// No log lines about the stream on stderr.
     #[arg(long)]
     quiet: bool,
@@ -131,12 +124,10 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(sig, stop.clone()).context("installing the Ctrl-C handler")?;
     }
-    let track = track_options(&a)?;
-    let predictor =
-        pins::flow::infer::Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
-            .with_refine(&pins::flow::refine::Refine::parse(&a.refine)?)
-            .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
-    let iters = a.iters.unwrap_or(predictor.config.iters);
+    let cfg = settings(&a)?;
+    let track = cfg.options(Profile::Estimated, false)?;
+    let predictor = cfg.flow.predictor(pins::flow::device::select(&a.device)?)?;
+    let iters = cfg.flow.iters_for(&predictor);
     let stitcher = match &a.calib {
         Some(p) => {
             let text =
@@ -152,6 +143,7 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
         predictor,
         PipelineConfig {
             scale: a.scale,
+            flow_scale: cfg.flow.scale,
             iters,
             stitcher,
             track,
@@ -275,23 +267,37 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
     Ok(())
 }
 
-fn track_options(a: &LiveArgs) -> Result<pins::track::run::TrackOptions> {
-    use pins::track::{detect::DetectConfig, multi::TrackerConfig};
-    if a.confirm == 0 {
-        bail!("--confirm must be >= 1");
-    }
-    Ok(pins::track::run::TrackOptions {
-        tracker: TrackerConfig {
-            confirm: a.confirm,
-            ..TrackerConfig::default()
+/// The horizons of `pins live` without --horizons or --config: its frames come at about 15 per
+/// second, so 1, 5 and 15 frames ahead reach a second.
+pub(crate) const LIVE_HORIZONS: [usize; 3] = [1, 5, 15];
+
+/// The tracking settings: the config file (or the estimated profile's defaults, with
+/// `LIVE_HORIZONS`) and the flags' overrides.
+fn settings(a: &LiveArgs) -> Result<TrackConfig> {
+    let mut cfg = match &a.config {
+        Some(p) => TrackConfig::from_file(p)?,
+        None => TrackConfig {
+            horizons: LIVE_HORIZONS.to_vec(),
+            ..TrackConfig::default()
         },
-        horizons: a.horizons.clone(),
-        threshold: a.threshold,
-        noise_k: a.noise_k,
-        min_area: a.min_area,
-        detect: DetectConfig::default().resolved(true),
-        debug: false,
-    })
+    };
+    if let Some(p) = a.profile {
+        cfg.profile = Some(p);
+    }
+    if let Some(w) = &a.weights {
+        cfg.flow.weights = w.clone();
+    }
+    if a.iters.is_some() {
+        cfg.flow.iters = a.iters;
+    }
+    if let Some(c) = a.confirm {
+        cfg.tracker.confirm = c;
+    }
+    if let Some(h) = &a.horizons {
+        cfg.horizons = h.clone();
+    }
+    cfg.validate().map_err(crate::cli::track::flag_named)?;
+    Ok(cfg)
 }
 
 /// Sets frame size and quality through the camera's `/control` (port 80), each answer checked.

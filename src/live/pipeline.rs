@@ -21,7 +21,11 @@ use crate::wide::Stitcher;
 
 /// Settings of the pipeline.
 pub struct PipelineConfig {
+    /// Downscale factor in (0, 1] of the (stitched) frames: tracks are in these pixels.
     pub scale: f64,
+    /// The multiple of the downscaled frame's size that MMS runs at (`flow::scale`,
+    /// `TrackConfig::flow.scale`), the flow brought back to it.
+    pub flow_scale: f64,
     pub iters: usize,
     pub stitcher: Option<Stitcher>,
     pub track: TrackOptions,
@@ -130,9 +134,13 @@ impl Pipeline {
             return Ok(None);
         }
         let t1 = Instant::now();
-        let flow = self
-            .predictor
-            .predict(&prev.image, &cur.image, self.cfg.iters)?;
+        let flow = crate::flow::scale::predict_scaled(
+            &self.predictor,
+            &prev.image,
+            &cur.image,
+            self.cfg.iters,
+            self.cfg.flow_scale,
+        )?;
         let flow_ms = t1.elapsed().as_secs_f64() * 1e3;
         let t2 = Instant::now();
         let pair = GreyPair::of(&prev.grey, &cur.grey);

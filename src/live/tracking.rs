@@ -41,7 +41,7 @@ impl LiveTracker {
         opts.validate()?;
         let max_h = opts.horizons.iter().copied().max().unwrap_or(1);
         Ok(Self {
-            tracker: Tracker::new(opts.tracker_config())?,
+            tracker: Tracker::new(opts.tracker.clone())?,
             placer: opts.detect.still_background()?,
             opts,
             max_h,
@@ -50,7 +50,7 @@ impl LiveTracker {
 
     /// Starts over (a new frame size): no track survives.
     pub fn reset(&mut self) -> Result<()> {
-        self.tracker = Tracker::new(self.opts.tracker_config())?;
+        self.tracker = Tracker::new(self.opts.tracker.clone())?;
         self.placer = self.opts.detect.still_background()?;
         Ok(())
     }

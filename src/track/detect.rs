@@ -50,7 +50,7 @@ pub struct DetectConfig {
     /// box-averaged difference exceeds their noise floor, and each such seed grows to its
     /// object by the motion the frames confirm; the flow-noise floor (`noise_k`) then does
     /// not raise the magnitude threshold. `null` (the default): on for an estimated flow
-    /// (MMS), off for a given one (`DetectConfig::resolved`).
+    /// (MMS), off for a given one (`TrackConfig::resolved`, by the profile).
     pub change: Option<bool>,
     /// Side of the box (pixels, odd) that averages the frames' difference.
     pub change_window: usize,
@@ -70,7 +70,7 @@ pub struct DetectConfig {
     /// colours in frame n onto frame n + 1 (`track::align`, searched around its mean flow),
     /// where that explains the frames better than the mean flow: the trajectory fits' speed
     /// and direction samples (`Region::aligned`). `null` (the default): on for an estimated
-    /// flow, off for a given one (`DetectConfig::resolved`).
+    /// flow, off for a given one (`TrackConfig::resolved`, by the profile).
     pub align: Option<bool>,
     /// The alignment searches at most this many pixels from the mean flow on each axis.
     pub align_reach: usize,
@@ -113,23 +113,8 @@ impl Default for DetectConfig {
 }
 
 impl DetectConfig {
-    /// The settings with the change test's, the alignment's and the placement's defaults
-    /// settled: on when the flow is estimated (its jitter on a still background and its
-    /// shortfall on small movers are what they are for), off for a given flow.
-    pub fn resolved(&self, estimated_flow: bool) -> Self {
-        Self {
-            change: Some(self.change.unwrap_or(estimated_flow)),
-            align: Some(self.align.unwrap_or(estimated_flow)),
-            place: PlaceConfig {
-                enabled: Some(self.place.enabled.unwrap_or(estimated_flow)),
-                ..self.place.clone()
-            },
-            ..self.clone()
-        }
-    }
-
     /// The still background of a run when the placement is on (its `null` default counts as
-    /// on: call `resolved` first to settle it by the flow source).
+    /// on: `TrackConfig::resolved` settles it by the profile).
     pub fn still_background(&self) -> Result<Option<StillBackground>> {
         if self.place.enabled == Some(false) {
             return Ok(None);

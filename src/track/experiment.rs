@@ -7,11 +7,9 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::config::{Profile, TrackConfig, from_value_named};
 use super::coverage::Coverage;
-use super::detect::DetectConfig;
 use super::eval::{HorizonError, evaluate};
-use super::mtp::MtpConfig;
-use super::multi::TrackerConfig;
 use super::photometric::{GreyFrame, GreyPair};
 pub use super::points::{OperatingPoint, PointRow, points_chart, points_table};
 use super::run::{FlowStep, TrackOptions, Tracks, track_sequence};
@@ -106,13 +104,13 @@ impl ClipSpec {
     }
 }
 
-/// One named predictor setting.
+/// One named predictor setting: `mtp` keys that override the experiment's `track.tracker.mtp`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PredictorSpec {
     pub name: String,
     #[serde(default)]
-    pub mtp: MtpConfig,
+    pub mtp: serde_json::Map<String, serde_json::Value>,
 }
 
 /// An experiment file.
@@ -121,48 +119,16 @@ pub struct PredictorSpec {
 pub struct ExperimentConfig {
     pub clips: Vec<ClipSpec>,
     pub predictors: Vec<PredictorSpec>,
+    /// Prediction horizons (frames); they replace `track.horizons`.
     pub horizons: Vec<usize>,
     #[serde(default = "default_source")]
     pub flow: FlowSource,
-    /// MMS weights for `"flow": "mms"` (a file, or built-in: `mms-small`, the default here, `mms-small-real`, `default`) and iterations.
-    #[serde(default = "default_weights")]
-    pub weights: String,
-    #[serde(default = "default_iters")]
-    pub iters: usize,
-    /// The multiple of the frame size MMS runs at, in (0, 4] (see `flow::scale`).
-    #[serde(default = "default_scale")]
-    pub scale: f64,
-    /// What follows MMS: `"none"` (the default for tracking), `"variational"` or a settings file.
-    #[serde(default = "default_refine")]
-    pub refine: String,
-    /// Where MMS starts: `"zero"` (the default for tracking) or `"coarse"` (from its own flow
-    /// at half resolution).
-    #[serde(default = "default_start")]
-    pub start: String,
-    /// Detection: flow magnitude threshold (px/frame) and smallest region (px).
-    #[serde(default = "default_threshold")]
-    pub threshold: f64,
-    #[serde(default = "default_min_area")]
-    pub min_area: usize,
-    /// Robust noise floor of the threshold, in standard deviations (see `TrackOptions`).
-    #[serde(default = "default_noise_k")]
-    pub noise_k: f64,
-    /// The background model and the photometric test (which runs on MMS clips, whose camera
-    /// frames are at hand).
+    /// The tracking settings (`TrackConfig`): the profile follows `flow` (`truth`: exact,
+    /// `mms` and `dis`: estimated) unless the file names one; `track.flow` is MMS's.
     #[serde(default)]
-    pub detect: DetectConfig,
-    /// Confirmation window and motion consistency (see `TrackerConfig`); the defaults when absent.
-    #[serde(default)]
-    pub confirm: Option<usize>,
-    /// How far the matching gate widens while a track coasts (`TrackerConfig::max_gate_factor`);
-    /// the default when absent.
-    #[serde(default)]
-    pub max_gate_factor: Option<f64>,
-    /// The matching cascade (`TrackerConfig::match_cascade`); off when absent.
-    #[serde(default)]
-    pub match_cascade: bool,
+    pub track: TrackConfig,
     /// MMS flow only: the points of the whole system's error-against-run-time curve (flow
-    /// resolution and iterations). Empty: one point, full resolution at `iters`.
+    /// resolution and iterations). Empty: one point, `track.flow.scale` and `track.flow.iters`.
     #[serde(default)]
     pub operating_points: Vec<OperatingPoint>,
 }
@@ -170,46 +136,54 @@ pub struct ExperimentConfig {
 fn default_source() -> FlowSource {
     FlowSource::Truth
 }
-fn default_weights() -> String {
-    crate::flow::infer::TRACK_WEIGHTS.into()
-}
-fn default_iters() -> usize {
-    12
-}
-fn default_scale() -> f64 {
-    1.0
-}
-fn default_refine() -> String {
-    "none".into()
-}
-fn default_start() -> String {
-    "zero".into()
-}
-fn default_threshold() -> f64 {
-    0.5
-}
-fn default_min_area() -> usize {
-    20
-}
-fn default_noise_k() -> f64 {
-    3.0
-}
 
 impl ExperimentConfig {
-    /// The operating points to run: the configured ones, or full resolution at `iters`.
-    pub fn points(&self) -> Vec<OperatingPoint> {
+    /// The operating points to run: the configured ones, or `track.flow`'s scale and
+    /// iterations (`weights_iters`, the weights' own, where it names none).
+    pub fn points(&self, weights_iters: usize) -> Vec<OperatingPoint> {
         if self.operating_points.is_empty() {
             vec![OperatingPoint {
-                scale: self.scale,
-                iters: self.iters,
+                scale: self.track.flow.scale,
+                iters: self.track.flow.iters.unwrap_or(weights_iters),
             }]
         } else {
             self.operating_points.clone()
         }
     }
 
+    /// The profile of the experiment's flow where `track` names none.
+    pub fn profile(&self) -> Profile {
+        match self.flow {
+            FlowSource::Truth => Profile::Exact,
+            FlowSource::Mms | FlowSource::Dis => Profile::Estimated,
+        }
+    }
+
+    /// The run options of predictor number `index`: `track` with its `mtp` keys, settled by
+    /// the profile.
+    pub fn options(&self, index: usize) -> Result<TrackOptions> {
+        let p = self
+            .predictors
+            .get(index)
+            .ok_or_else(|| Error::invalid("predictors", format!("no predictor {index}")))?;
+        let mut track = self
+            .track
+            .with_mtp(&p.mtp, &format!("predictors[{index}].mtp ({})", p.name))?;
+        track.horizons = self.horizons.clone();
+        track.options(self.profile(), false)
+    }
+
     pub fn from_file(path: &Path) -> Result<Self> {
-        let mut cfg: Self = crate::io::read_json(path)?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let value: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| crate::io::in_config(path, e))?;
+        // The tracking settings first, so an error names their key.
+        if let Some(t) = value.get("track") {
+            from_value_named::<TrackConfig>(t)
+                .map_err(|e| crate::io::in_config(path, format!("track.{e}")))?;
+        }
+        let mut cfg: Self =
+            serde_json::from_value(value).map_err(|e| crate::io::in_config(path, e))?;
         let base = path.parent().unwrap_or(Path::new(""));
         let specs = std::mem::take(&mut cfg.clips);
         for c in specs {
@@ -227,47 +201,16 @@ impl ExperimentConfig {
                 "needs at least one clip and one predictor",
             ));
         }
-        crate::flow::infer::parse_start(&self.start).map_err(|_| {
-            Error::invalid(
-                "start",
-                format!("expected \"zero\" or \"coarse\", got {:?}", self.start),
-            )
-        })?;
-        crate::flow::refine::Refine::parse(&self.refine).map_err(|_| {
-            Error::invalid(
-                "refine",
-                format!(
-                    "expected \"none\" or \"variational\", got {:?}",
-                    self.refine
-                ),
-            )
-        })?;
         if self.horizons.is_empty() || self.horizons.iter().any(|&h| h == 0 || h > 10_000) {
             return Err(Error::invalid("horizons", "need horizons in 1..=10000"));
         }
-        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
-            return Err(Error::invalid("threshold", "must be finite and >= 0"));
-        }
-        if !(self.noise_k.is_finite() && self.noise_k >= 0.0) {
-            return Err(Error::invalid("noise_k", "must be finite and >= 0"));
-        }
-        crate::flow::scale::check_scale(self.scale)?;
-        if self.scale != 1.0 && self.flow != FlowSource::Mms {
+        self.track
+            .validate()
+            .map_err(|e| Error::invalid("track", e.to_string()))?;
+        if self.track.flow.scale != 1.0 && self.flow != FlowSource::Mms {
             return Err(Error::invalid(
-                "scale",
+                "track.flow.scale",
                 "only MMS flow runs at a scale (set \"flow\": \"mms\")",
-            ));
-        }
-        self.detect.validate()?;
-        if self.confirm == Some(0) {
-            return Err(Error::invalid("confirm", "must be >= 1"));
-        }
-        if let Some(f) = self.max_gate_factor
-            && !(f >= 1.0 && f.is_finite())
-        {
-            return Err(Error::invalid(
-                "max_gate_factor",
-                format!("must be finite and >= 1, got {f}"),
             ));
         }
         if !self.operating_points.is_empty() && self.flow != FlowSource::Mms {
@@ -296,8 +239,8 @@ impl ExperimentConfig {
             }
             c.loaded.validate()?;
         }
-        for p in &self.predictors {
-            p.mtp.validate()?;
+        for i in 0..self.predictors.len() {
+            self.options(i)?;
         }
         Ok(())
     }
@@ -449,13 +392,14 @@ pub fn run(
 ) -> Result<ExperimentReport> {
     cfg.validate()?;
     let predictor = match cfg.flow {
-        FlowSource::Mms => Some(
-            Predictor::load(&cfg.weights)?
-                .with_refine(&crate::flow::refine::Refine::parse(&cfg.refine)?)
-                .with_coarse_start(crate::flow::infer::parse_start(&cfg.start)?),
-        ),
+        FlowSource::Mms => Some(cfg.track.flow.predictor(burn::prelude::Device::flex())?),
         FlowSource::Truth | FlowSource::Dis => None,
     };
+    // Iterations count for MMS only.
+    let weights_iters = predictor.as_ref().map_or(0, |p| p.config.iters);
+    let options = (0..cfg.predictors.len())
+        .map(|i| cfg.options(i))
+        .collect::<Result<Vec<_>>>()?;
     let mut rows = Vec::new();
     let mut switches = Vec::new();
     let mut spurious = Vec::new();
@@ -465,38 +409,20 @@ pub fn run(
     let mut background = Vec::new();
     let mut flow_ms = Vec::new();
     let mut points = Vec::new();
-    let several = cfg.points().len() > 1;
+    let several = cfg.points(weights_iters).len() > 1;
     for clip in &cfg.clips {
-        for point in cfg.points() {
+        for point in cfg.points(weights_iters) {
             let (data, ms) = clip_flows(&clip.loaded, cfg.flow, predictor.as_ref(), point)?;
             flow_ms.extend(ms);
             let mms_point = (cfg.flow == FlowSource::Mms).then_some(point);
-            let estimated_flow = cfg.flow != FlowSource::Truth;
-            for p in &cfg.predictors {
+            for (p, opts) in cfg.predictors.iter().zip(&options) {
                 // With several operating points each (predictor, point) is its own case.
                 let name = if several {
                     format!("{} @ {}", p.name, point.label())
                 } else {
                     p.name.clone()
                 };
-                let opts = TrackOptions {
-                    tracker: TrackerConfig {
-                        mtp: p.mtp.clone(),
-                        confirm: cfg.confirm.unwrap_or(TrackerConfig::default().confirm),
-                        max_gate_factor: cfg
-                            .max_gate_factor
-                            .unwrap_or(TrackerConfig::default().max_gate_factor),
-                        match_cascade: cfg.match_cascade,
-                        ..TrackerConfig::default()
-                    },
-                    horizons: cfg.horizons.clone(),
-                    threshold: cfg.threshold,
-                    noise_k: cfg.noise_k,
-                    min_area: cfg.min_area,
-                    detect: cfg.detect.resolved(estimated_flow),
-                    debug: false,
-                };
-                let tracks = track_clip(&data, &opts)?;
+                let tracks = track_clip(&data, opts)?;
                 if let Some(b) = &tracks.background_flow {
                     let key = if several {
                         format!("{} @ {}", clip.name, point.label())

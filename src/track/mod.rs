@@ -7,6 +7,7 @@ pub mod appearance;
 pub mod associate;
 pub mod background;
 pub mod change;
+pub mod config;
 pub mod consistency;
 pub mod coverage;
 pub mod detect;

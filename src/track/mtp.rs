@@ -35,7 +35,7 @@ pub enum Method {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MtpConfig {
-    /// `null` (the default): settled by `resolved`, `Method::Select` where the samples are
+    /// `null` (the default): settled by `TrackConfig::resolved`, `Method::Select` where the samples are
     /// measured on the frames (an estimated flow's pipeline, whose forecasts 30 frames ahead
     /// it took closer on 30 of 44 clips and further on 1, tracking unchanged), the paper's
     /// `Method::Poly` otherwise.
@@ -46,7 +46,7 @@ pub struct MtpConfig {
     /// order until then (`predict::supported_order`): with 5, a new track's forecasts are a
     /// constant speed and direction for its first 5 samples and linear from 6 to 10; with 1,
     /// the highest order the samples determine (the paper's fit). `null` (the default):
-    /// settled by `resolved`, `SAMPLES_PER_ORDER_MEASURED` where the samples are measured on
+    /// settled by `TrackConfig::resolved`, `SAMPLES_PER_ORDER_MEASURED` where the samples are measured on
     /// the frames (aligned motions, placed centres: an estimated flow's pipeline), whose
     /// noise a quadratic through a new track's few samples extrapolates hundreds of pixels,
     /// and 1 for a given flow's own samples, exact enough to fit at once.
@@ -54,7 +54,7 @@ pub struct MtpConfig {
     /// The fitted trend of speed and direction is followed for this many times the window's
     /// time span past the last sample, and the velocity held from there
     /// (`MotionFit::hold_after`): a young track's fit over 10 frames is not extrapolated 30.
-    /// 0 follows it all the way (Eq. S22's). `null` (the default): settled by `resolved`,
+    /// 0 follows it all the way (Eq. S22's). `null` (the default): settled by `TrackConfig::resolved`,
     /// `TREND_REACH_MEASURED` where the samples are measured on the frames, 0 otherwise.
     pub trend_reach: Option<f64>,
     /// Kalman process and measurement noise for position (px²) and for speed and direction.
@@ -139,28 +139,6 @@ pub const SAMPLES_PER_ORDER_MEASURED: usize = 5;
 pub const TREND_REACH_MEASURED: f64 = 1.0;
 
 impl MtpConfig {
-    /// The settings with `method`'s, `samples_per_order`'s and `trend_reach`'s defaults
-    /// settled: `Method::Select`, `SAMPLES_PER_ORDER_MEASURED` and `TREND_REACH_MEASURED` when
-    /// the samples are `measured` on the frames (the alignment or the placement runs), the
-    /// paper's fit (`Method::Poly`, 1 and 0) otherwise.
-    pub fn resolved(&self, measured: bool) -> Self {
-        let (method, per_order, reach) = if measured {
-            (
-                Method::Select,
-                SAMPLES_PER_ORDER_MEASURED,
-                TREND_REACH_MEASURED,
-            )
-        } else {
-            (Method::Poly, 1, 0.0)
-        };
-        Self {
-            method: Some(self.method.unwrap_or(method)),
-            samples_per_order: Some(self.samples_per_order.unwrap_or(per_order)),
-            trend_reach: Some(self.trend_reach.unwrap_or(reach)),
-            ..self.clone()
-        }
-    }
-
     pub fn validate(&self) -> Result<()> {
         if let Some(n) = self.samples_per_order
             && !(1..=10_000).contains(&n)
@@ -539,25 +517,6 @@ mod tests {
             "worst 30-frame error over the first ten frames: {waiting:.1} px waiting, \
              {interpolating:.1} px interpolating"
         );
-        // The default waits where the samples are measured on the frames, not for a given
-        // flow's own; a setting given stays.
-        let auto = MtpConfig::default();
-        assert_eq!(auto.resolved(true).samples_per_order, Some(5));
-        assert_eq!(auto.resolved(false).samples_per_order, Some(1));
-        let three = MtpConfig {
-            samples_per_order: Some(3),
-            ..auto
-        };
-        assert_eq!(three.resolved(false).samples_per_order, Some(3));
-        assert_eq!(auto.resolved(true).trend_reach, Some(TREND_REACH_MEASURED));
-        assert_eq!(auto.resolved(false).trend_reach, Some(0.0));
-        assert_eq!(auto.resolved(true).method, Some(Method::Select));
-        assert_eq!(auto.resolved(false).method, Some(Method::Poly));
-        let poly = MtpConfig {
-            method: Some(Method::Poly),
-            ..MtpConfig::default()
-        };
-        assert_eq!(poly.resolved(true).method, Some(Method::Poly));
         for bad in [-1.0, f64::NAN, f64::INFINITY] {
             let c = MtpConfig {
                 trend_reach: Some(bad),

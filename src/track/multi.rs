@@ -23,7 +23,7 @@ use super::reid::{Candidate, Lost, reid_distance};
 use super::roi::Region;
 use super::split::Seed;
 pub use super::tracker_config::TrackerConfig;
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// One track's estimate in one frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -130,68 +130,7 @@ pub struct Tracker {
 
 impl Tracker {
     pub fn new(config: TrackerConfig) -> Result<Self> {
-        config.mtp.validate()?;
-        if !(config.gate_px.is_finite() && config.gate_px > 0.0) || config.confirm == 0 {
-            return Err(Error::invalid(
-                "tracker",
-                "gate must be finite and > 0, confirm >= 1",
-            ));
-        }
-        if !(0.0..1.0).contains(&config.partial_area_ratio) {
-            return Err(Error::invalid(
-                "tracker.partial_area_ratio",
-                format!("must be in [0, 1), got {}", config.partial_area_ratio),
-            ));
-        }
-        if config.consistency_max_ratio.is_nan() || config.consistency_max_ratio < 1.0 {
-            return Err(Error::invalid(
-                "tracker.consistency_max_ratio",
-                format!("must be >= 1, got {}", config.consistency_max_ratio),
-            ));
-        }
-        if !(config.foreground_gate.is_finite() && config.foreground_gate >= 0.0) {
-            return Err(Error::invalid(
-                "tracker.foreground_gate",
-                format!(
-                    "must be finite and >= 0 (0: off), got {}",
-                    config.foreground_gate
-                ),
-            ));
-        }
-        if config.max_gate_factor.is_nan() || config.max_gate_factor < 1.0 {
-            return Err(Error::invalid(
-                "tracker.max_gate_factor",
-                format!("must be >= 1, got {}", config.max_gate_factor),
-            ));
-        }
-        for (n, v) in [
-            ("consistency_px", config.consistency_px),
-            ("consistency_rel", config.consistency_rel),
-            ("velocity_gate_px", config.velocity_gate_px),
-            ("velocity_gate_rel", config.velocity_gate_rel),
-            ("birth_exclusion_px", config.birth_exclusion_px),
-            ("appearance_k", config.appearance_k),
-            ("reid_k", config.reid_k),
-        ] {
-            if v.is_nan() || v < 0.0 {
-                return Err(Error::invalid(
-                    format!("tracker.{n}"),
-                    format!("must be >= 0 (inf turns the test off), got {v}"),
-                ));
-            }
-        }
-        if !(config.appearance_floor.is_finite() && config.appearance_floor > 0.0) {
-            return Err(Error::invalid(
-                "tracker.appearance_floor",
-                format!("must be finite and > 0, got {}", config.appearance_floor),
-            ));
-        }
-        if !(config.appearance_px.is_finite() && config.appearance_px >= 0.0) {
-            return Err(Error::invalid(
-                "tracker.appearance_px",
-                format!("must be finite and >= 0, got {}", config.appearance_px),
-            ));
-        }
+        config.validate()?;
         Ok(Self {
             config,
             tracks: Vec::new(),

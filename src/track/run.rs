@@ -58,7 +58,7 @@ impl Tracks {
     }
 }
 
-/// Options of a run.
+/// Options of a run: a `TrackConfig` settled by its profile (`TrackConfig::options`).
 #[derive(Clone, Debug)]
 pub struct TrackOptions {
     pub tracker: TrackerConfig,
@@ -77,25 +77,14 @@ pub struct TrackOptions {
 }
 
 impl TrackOptions {
-    /// The tracker's settings with the predictor's defaults settled by the detection's
-    /// (`MtpConfig::resolved`): its samples are measured on the frames where the alignment or
-    /// the placement runs.
-    pub fn tracker_config(&self) -> TrackerConfig {
-        let measured = self.detect.align == Some(true) || self.detect.place.enabled == Some(true);
-        TrackerConfig {
-            mtp: self.tracker.mtp.resolved(measured),
-            ..self.tracker.clone()
-        }
-    }
-
-    /// Checks every option, naming the flag of the first bad one.
+    /// Checks every option, naming the key of the first bad one.
     pub fn validate(&self) -> Result<()> {
         if self.horizons.is_empty() || self.horizons.iter().any(|&h| h == 0 || h > 10_000) {
-            return Err(Error::invalid("--horizons", "need horizons in 1..=10000"));
+            return Err(Error::invalid("horizons", "need horizons in 1..=10000"));
         }
         if !(self.threshold.is_finite() && self.threshold >= 0.0) {
             return Err(Error::invalid(
-                "--threshold",
+                "threshold",
                 format!(
                     "must be a finite number >= 0 (px/frame), got {}",
                     self.threshold
@@ -104,11 +93,12 @@ impl TrackOptions {
         }
         if !(self.noise_k.is_finite() && self.noise_k >= 0.0) {
             return Err(Error::invalid(
-                "--noise-k",
+                "noise_k",
                 format!("must be a finite number >= 0, got {}", self.noise_k),
             ));
         }
-        self.detect.validate()
+        self.detect.validate()?;
+        self.tracker.validate()
     }
 }
 
@@ -261,7 +251,7 @@ pub fn track_sequence(
 ) -> Result<TrackRun> {
     opts.validate()?;
     let max_h = *opts.horizons.iter().max().unwrap_or(&1);
-    let mut tracker = Tracker::new(opts.tracker_config())?;
+    let mut tracker = Tracker::new(opts.tracker.clone())?;
     let mut objects: BTreeMap<usize, Vec<FrameRecord>> = BTreeMap::new();
     let mut size: Option<(usize, usize)> = None;
     let mut busy = std::time::Duration::ZERO;

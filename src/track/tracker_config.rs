@@ -5,6 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::mtp::MtpConfig;
+use crate::error::{Error, Result};
 
 /// Tracker settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -120,5 +121,77 @@ impl Default for TrackerConfig {
             reid_k: 3.0,
             weak_continues_tentative: true,
         }
+    }
+}
+
+impl TrackerConfig {
+    /// Checks every setting, naming the key of the first bad one.
+    pub fn validate(&self) -> Result<()> {
+        self.mtp.validate()?;
+        if !(self.gate_px.is_finite() && self.gate_px > 0.0) {
+            return Err(Error::invalid(
+                "tracker.gate_px",
+                format!("must be finite and > 0, got {}", self.gate_px),
+            ));
+        }
+        if self.confirm == 0 {
+            return Err(Error::invalid("tracker.confirm", "must be >= 1, got 0"));
+        }
+        if !(0.0..1.0).contains(&self.partial_area_ratio) {
+            return Err(Error::invalid(
+                "tracker.partial_area_ratio",
+                format!("must be in [0, 1), got {}", self.partial_area_ratio),
+            ));
+        }
+        if self.consistency_max_ratio.is_nan() || self.consistency_max_ratio < 1.0 {
+            return Err(Error::invalid(
+                "tracker.consistency_max_ratio",
+                format!("must be >= 1, got {}", self.consistency_max_ratio),
+            ));
+        }
+        if !(self.foreground_gate.is_finite() && self.foreground_gate >= 0.0) {
+            return Err(Error::invalid(
+                "tracker.foreground_gate",
+                format!(
+                    "must be finite and >= 0 (0: off), got {}",
+                    self.foreground_gate
+                ),
+            ));
+        }
+        if self.max_gate_factor.is_nan() || self.max_gate_factor < 1.0 {
+            return Err(Error::invalid(
+                "tracker.max_gate_factor",
+                format!("must be >= 1, got {}", self.max_gate_factor),
+            ));
+        }
+        for (n, v) in [
+            ("consistency_px", self.consistency_px),
+            ("consistency_rel", self.consistency_rel),
+            ("velocity_gate_px", self.velocity_gate_px),
+            ("velocity_gate_rel", self.velocity_gate_rel),
+            ("birth_exclusion_px", self.birth_exclusion_px),
+            ("appearance_k", self.appearance_k),
+            ("reid_k", self.reid_k),
+        ] {
+            if v.is_nan() || v < 0.0 {
+                return Err(Error::invalid(
+                    format!("tracker.{n}"),
+                    format!("must be >= 0 (inf turns the test off), got {v}"),
+                ));
+            }
+        }
+        if !(self.appearance_floor.is_finite() && self.appearance_floor > 0.0) {
+            return Err(Error::invalid(
+                "tracker.appearance_floor",
+                format!("must be finite and > 0, got {}", self.appearance_floor),
+            ));
+        }
+        if !(self.appearance_px.is_finite() && self.appearance_px >= 0.0) {
+            return Err(Error::invalid(
+                "tracker.appearance_px",
+                format!("must be finite and >= 0, got {}", self.appearance_px),
+            ));
+        }
+        Ok(())
     }
 }
