@@ -328,12 +328,12 @@ fn experiment(a: ExperimentArgs) -> Result<()> {
         }
         Ok(())
     })?;
-    let text = table(&report) + &points_table(&report);
+    let text = table(&report) + &points_table(&report.points);
     println!("{text}");
     if cfg.operating_points.len() > 1 {
         for &h in &cfg.horizons {
             // A horizon no track reached has no finite error to draw: said, not fatal.
-            if let Some(chart) = points_chart(&report, h) {
+            if let Some(chart) = points_chart(&report.points, h) {
                 let png = a.out.join(format!("error_vs_ms_h{h}.png"));
                 if let Err(e) = chart.write_png(&png, 900, 600) {
                     eprintln!("{}: not written: {e}", png.display());

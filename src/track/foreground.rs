@@ -8,7 +8,7 @@
 use std::collections::VecDeque;
 
 use super::noise_level::{self, NoiseLevel};
-use super::still_background::{ColourFrame, PlaceConfig, Placement};
+use super::placement::{ColourFrame, PlaceConfig, Placement, disc};
 
 /// Fewest frames a pixel's median leaves it uncovered in before the covered ones are left
 /// out (`PlaceConfig::mask`): the median of fewer is noise.
@@ -241,28 +241,6 @@ impl<'a> Foreground<'a> {
         }
         Placement::Moved { to: p }
     }
-}
-
-/// The pixels (x, y) of a `w` × `h` frame within `radius` of `centre`; none for a
-/// non-finite centre or radius.
-pub(crate) fn disc(
-    centre: (f64, f64),
-    radius: f64,
-    w: usize,
-    h: usize,
-) -> impl Iterator<Item = (usize, usize)> {
-    let ok = centre.0.is_finite() && centre.1.is_finite() && radius.is_finite() && w * h > 0;
-    let span = |c: f64, n: usize| {
-        let (lo, hi) = ((c - radius).ceil().max(0.0), (c + radius).floor());
-        if ok && lo <= hi && lo <= (n - 1) as f64 {
-            lo as usize..(hi.min((n - 1) as f64) as usize + 1)
-        } else {
-            0..0
-        }
-    };
-    let (xs, ys) = (span(centre.0, w), span(centre.1, h));
-    ys.flat_map(move |y| xs.clone().map(move |x| (x, y)))
-        .filter(move |&(x, y)| (x as f64 - centre.0).hypot(y as f64 - centre.1) <= radius)
 }
 
 /// The median of |v − b| over the 8-bit `samples` (at most 255; 0 for none), the two middle

@@ -23,6 +23,7 @@ pub mod multi;
 pub mod noise_floor;
 pub mod noise_level;
 pub mod photometric;
+pub mod placement;
 pub mod points;
 pub mod predict;
 pub mod reid;

@@ -3,7 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::experiment::ExperimentReport;
 use super::static_flow::BackgroundFlow;
 
 /// One point of the whole system's error against run time: MMS at `scale` of the frame size
@@ -42,11 +41,11 @@ pub struct PointRow {
 }
 
 /// The error-against-run-time table of the operating points (empty for exact flow).
-pub fn points_table(r: &ExperimentReport) -> String {
-    if r.points.is_empty() {
+pub fn points_table(points: &[PointRow]) -> String {
+    if points.is_empty() {
         return String::new();
     }
-    let horizons: Vec<usize> = r.points[0].rmse_2d.iter().map(|&(h, _)| h).collect();
+    let horizons: Vec<usize> = points[0].rmse_2d.iter().map(|&(h, _)| h).collect();
     let mut s = format!(
         "{:<12} {:<22} {:>5} {:>5} {:>9} {:>9} {:>9}",
         "clip", "predictor", "scale", "iters", "flow ms", "track ms", "total ms"
@@ -58,7 +57,7 @@ pub fn points_table(r: &ExperimentReport) -> String {
         " {:>6} {:>5} {:>5} {:>6} {:>8} {:>8}\n",
         "tracks", "IDsw", "spur", "missed", "bg mean", "bg p99"
     );
-    for p in &r.points {
+    for p in points {
         s += &format!(
             "{:<12} {:<22} {:>5.2} {:>5} {:>9.0} {:>9.2} {:>9.0}",
             p.clip,
@@ -86,13 +85,13 @@ pub fn points_table(r: &ExperimentReport) -> String {
 
 /// The error-against-run-time chart: per clip and predictor, RMSE_2D at `horizon` against
 /// the whole system's milliseconds per frame (flow + tracking), one marker per operating point.
-pub fn points_chart(r: &ExperimentReport, horizon: usize) -> Option<crate::io::chart::Chart> {
+pub fn points_chart(points: &[PointRow], horizon: usize) -> Option<crate::io::chart::Chart> {
     use crate::io::chart::{Chart, Series};
-    if r.points.is_empty() {
+    if points.is_empty() {
         return None;
     }
     let mut series: Vec<Series> = Vec::new();
-    for p in &r.points {
+    for p in points {
         let Some(&(_, e)) = p.rmse_2d.iter().find(|(h, _)| *h == horizon) else {
             continue;
         };
