@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One run, one machine: the pins camera model against the same chain in numpy/scipy.
-# Prints both tables and the throughput ratios (one core each) that the README quotes.
+# Prints both tables and the throughput ratios (one core each) that docs/performance.md quotes.
 # Needs: python3 with numpy and scipy (pip install numpy scipy).
 set -euo pipefail
 cd "$(dirname "$0")/.."

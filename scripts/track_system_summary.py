@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The whole system's targets on many clips (Table S5 at twice the paper's error, README
-"Trajectory prediction and tracking"): reads the evals.jsonl files that
+"""The whole system's targets on many clips (Table S5 at twice the paper's error,
+docs/tracking.md): reads the evals.jsonl files that
 scripts/track_system_sweep.sh writes and prints, per clip and over all, what
 tests/track_system.rs asserts and what it reports.
 

@@ -10,14 +10,14 @@
 //!
 //! The clips are the Table S5 clips' kind (640×480, 150 frames, one disc on a sinusoid, a spiral
 //! and a random path, and five discs) with seeds that no experiment or setting used (171–174 by
-//! default; `PINS_SYSTEM_SEED=N` renders N…N+3 instead, to try others: the README lists the
-//! sets measured). The default is a set whose margins do not hang on the last bits of the
+//! default; `PINS_SYSTEM_SEED=N` renders N…N+3 instead, to try others: experiments/results/
+//! tracking_history.md lists the sets measured). The default is a set whose margins do not hang on the last bits of the
 //! network's arithmetic, which differ between CPUs (seed 141's sinusoid lies within 0.1 px of its target).
 //! The single discs must meet Table S5's targets at twice the paper's error one frame ahead
 //! (sinusoid 3.7 px, spiral 12 px, random path 22 px) with one track and no ID switch; on five
 //! discs, every object is followed and no track follows nothing. The five-object clip's ID switches and per-ID errors
 //! are reported, not asserted: crossings of similar discs still break them on about half of
-//! such clips (README, tracking).
+//! such clips (experiments/results/tracking_history.md).
 
 use std::path::{Path, PathBuf};
 

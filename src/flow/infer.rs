@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
-/// The shipped weights, compiled into the binary and named by `--weights NAME` (see the README
+/// The shipped weights, compiled into the binary and named by `--weights NAME` (see docs/training.md
 /// for the commands that made them): `mms-small-real` (stage 5: photographic, large-motion,
 /// still- and plain-background data; the best flow on real images, so `default` for the flow
 /// commands) and `mms-small` (stage 3, on the generator's chairs; the tracker's weights, whose

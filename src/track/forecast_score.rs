@@ -19,7 +19,7 @@ const WARM: f64 = 3.0;
 /// the fit and the constant velocity differ by less than the noise of the centres, and a
 /// choice on the lower of the two there made the forecasts worse on 13 of the 44 tracking
 /// clips on MMS flow and better on 2; at 0.7, worse on 4 and better on 3, while 30 frames
-/// ahead 30 were better and 1 worse (docs/tracking.md).
+/// ahead 30 were better and 1 worse (experiments/results/tracking_log.md).
 pub const SWITCH_RATIO: f64 = 0.7;
 
 /// A forecast: positions at 1…K frames ahead.

@@ -76,7 +76,7 @@ pub struct MtpConfig {
     /// The forecasts start from its centre; the reported centre, the association's look-ahead
     /// and the velocity gate keep the tracking filter's, whose velocity is what the
     /// detections' flow is compared with. An estimated flow that gives a small mover half its
-    /// motion holds the tracking filter's centre back behind the object (docs/tracking.md).
+    /// motion holds the tracking filter's centre back behind the object (experiments/results/tracking_log.md).
     /// While the object is unseen the twin takes the tracking filter's state. `null` starts
     /// the forecasts from the tracking filter's centre. Without aligned motions (a given
     /// flow's own regions) the two filters are the same.
@@ -125,17 +125,17 @@ impl Default for MtpConfig {
 
 /// The aligned motion's measurement noise in the forecasts' filter (`MtpConfig::
 /// aligned_motion_r`, px²/frame²): the flow's own in the tracking filter (`motion_r`), as the
-/// aligned motion is the more accurate of the two on small movers (docs/tracking.md).
+/// aligned motion is the more accurate of the two on small movers (experiments/results/tracking_log.md).
 pub const ALIGNED_MOTION_R: f64 = 0.25;
 
 /// Samples per order of the fits whose samples are measured on the frames (`MtpConfig::
 /// samples_per_order`): over the 40 tracking clips on MMS flow, 5 took the forecasts 15 and 30
-/// frames ahead closer on 27 and 34 clips and further on 4 and 4 (docs/tracking.md).
+/// frames ahead closer on 27 and 34 clips and further on 4 and 4 (experiments/results/tracking_log.md).
 pub const SAMPLES_PER_ORDER_MEASURED: usize = 5;
 
 /// The trend's reach where the samples are measured on the frames (`MtpConfig::trend_reach`):
 /// over the 44 tracking clips on MMS flow, 1 took the forecasts 30 frames ahead closer on 27
-/// clips and further on 5, all spirals (docs/tracking.md).
+/// clips and further on 5, all spirals (experiments/results/tracking_log.md).
 pub const TREND_REACH_MEASURED: f64 = 1.0;
 
 impl MtpConfig {
@@ -324,7 +324,7 @@ impl Mtp {
             }
             None => {
                 // Unseen, the twin takes the tracking filter's state: coasting on an aligned
-                // velocity that one bad alignment set drifts off (docs/tracking.md).
+                // velocity that one bad alignment set drifts off (experiments/results/tracking_log.md).
                 self.ahead_x = self.x.clone();
                 self.ahead_y = self.y.clone();
                 (self.speed.step(f64::NAN), None)
