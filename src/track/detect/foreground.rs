@@ -1,7 +1,7 @@
 //! Frame n's foreground against the still camera's background (Note S13's region of
 //! interest, measured on the frame): the per-pixel temporal median of the stored frames,
 //! leaving out in each the discs where its objects were (`PlaceConfig::mask`), each channel's
-//! difference from it in units of the camera's noise at that level (`track::noise_level`),
+//! difference from it in units of the camera's noise at that level (`track::detect::noise_level`),
 //! and the mean shift that finds an object's centre (Eq. S17's centroid) on the weight above
 //! the frame's noise floor (Comaniciu & Meer 2002).
 
