@@ -9,12 +9,14 @@
 //!
 //! Above the stages, and free to import from all of them: `config.rs` (the one `TrackConfig`),
 //! `run.rs` (the sequence runner that ties the stages together) and `experiment.rs` (clips ×
-//! predictors, tracked and scored).
+//! predictors, tracked and scored). `robust.rs`, the median, MAD and robust standard
+//! deviation every stage reads, imports nothing.
 
 pub mod config;
 pub mod detect;
 pub mod eval;
 pub mod experiment;
 pub mod motion;
+pub mod robust;
 pub mod run;
 pub mod tracker;

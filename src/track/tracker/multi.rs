@@ -24,6 +24,7 @@ use crate::error::Result;
 use crate::track::detect::roi::{Region, covers};
 use crate::track::detect::split::Seed;
 use crate::track::motion::mtp::{Estimate, Mtp};
+use crate::track::robust;
 
 /// One track's estimate in one frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,11 +52,7 @@ fn adopt_foreground(d: &Region, predicted: (f64, f64), gate: f64) -> Option<Regi
 /// The median of `values`; `None` when there are none.
 fn median(values: &VecDeque<usize>) -> Option<f64> {
     let mut v: Vec<usize> = values.iter().copied().collect();
-    if v.is_empty() {
-        return None;
-    }
-    let mid = v.len() / 2;
-    Some(*v.select_nth_unstable(mid).1 as f64)
+    robust::upper_median(&mut v).map(|m| m as f64)
 }
 
 use super::consistency::{Consistency, Hit};
