@@ -2413,7 +2413,7 @@ fn fuzz_json_experiment_config() {
 fn fuzz_json_truth_and_tracks() {
     use pins::scene::trajectory::TrajectoryConfig;
     use pins::scene::truth::Truth;
-    use pins::track::run::Tracks;
+    use pins::track::tracker::tracks::Tracks;
     let truth = Truth::of(&TrajectoryConfig::default()).unwrap();
     let tracks = br#"{"objects": [{"id": 0, "frames": [
         {"frame": 0, "centroid": [10.5, 20.0], "speed": 1.5, "direction": 0.3, "observed": true,

@@ -10,7 +10,7 @@ use std::path::Path;
 use pins::Flow;
 use pins::scene::truth::Truth;
 use pins::track::eval::{TrackReport, evaluate};
-use pins::track::run::Tracks;
+use pins::track::tracker::tracks::Tracks;
 use serde_json::json;
 
 mod common;

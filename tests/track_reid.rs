@@ -9,7 +9,7 @@ use std::path::Path;
 
 use pins::scene::truth::Truth;
 use pins::track::eval::{TrackReport, evaluate};
-use pins::track::run::Tracks;
+use pins::track::tracker::tracks::Tracks;
 
 mod common;
 use common::{ok, pins, render_disc_line};

@@ -8,8 +8,8 @@ use pins::flow::sequence::pair_flows_scaled;
 use pins::io;
 use pins::scene::truth::Truth;
 use pins::track::config::{Profile, TrackConfig};
-use pins::track::photometric::{GreyFrame, GreyPair};
-use pins::track::run::Tracks;
+use pins::track::detect::photometric::{GreyFrame, GreyPair};
+use pins::track::tracker::tracks::Tracks;
 
 #[derive(clap::Args)]
 #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]

@@ -14,7 +14,7 @@ use super::tracking::{LiveTracker, Object};
 use crate::error::Result;
 use crate::flow::infer::Predictor;
 use crate::imaging::resize::downscale;
-use crate::track::photometric::{GreyFrame, GreyPair};
+use crate::track::detect::photometric::{GreyFrame, GreyPair};
 use crate::track::run::TrackOptions;
 use crate::types::{Flow, Image};
 use crate::wide::Stitcher;

@@ -7,10 +7,10 @@ use std::collections::BTreeMap;
 
 use crate::error::Result;
 use crate::track::detect::detect;
-use crate::track::multi::Tracker;
-use crate::track::photometric::GreyPair;
+use crate::track::detect::photometric::GreyPair;
+use crate::track::detect::still_background::StillBackground;
 use crate::track::run::TrackOptions;
-use crate::track::still_background::StillBackground;
+use crate::track::tracker::multi::Tracker;
 use crate::types::Flow;
 
 /// One confirmed object after one frame.

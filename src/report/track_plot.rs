@@ -10,7 +10,7 @@ use plotters::prelude::*;
 use crate::error::Result;
 use crate::io::chart::{plot_err, register_font, write_rgb_png};
 use crate::scene::truth::TruthObject;
-use crate::track::run::ObjectTrack;
+use crate::track::tracker::tracks::ObjectTrack;
 
 const RED: RGBColor = RGBColor(214, 39, 40);
 const BLUE: RGBColor = RGBColor(31, 119, 180);

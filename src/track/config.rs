@@ -10,9 +10,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::detect::DetectConfig;
-use super::mtp::{Method, SAMPLES_PER_ORDER_MEASURED, TREND_REACH_MEASURED};
+use super::motion::mtp::{Method, SAMPLES_PER_ORDER_MEASURED, TREND_REACH_MEASURED};
 use super::run::TrackOptions;
-use super::tracker_config::TrackerConfig;
+use super::tracker::tracker_config::TrackerConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;
 

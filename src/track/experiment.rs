@@ -8,12 +8,13 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::config::{Profile, TrackConfig, from_value_named};
-use super::coverage::Coverage;
+use super::detect::photometric::{GreyFrame, GreyPair};
+use super::detect::static_flow::BackgroundFlow;
+use super::eval::coverage::Coverage;
+pub use super::eval::points::{OperatingPoint, PointRow, points_chart, points_table};
 use super::eval::{HorizonError, evaluate};
-use super::photometric::{GreyFrame, GreyPair};
-pub use super::points::{OperatingPoint, PointRow, points_chart, points_table};
-use super::run::{FlowStep, TrackOptions, Tracks, track_sequence};
-use super::static_flow::BackgroundFlow;
+use super::run::{FlowStep, TrackOptions, track_sequence};
+use super::tracker::tracks::Tracks;
 use crate::dataset::sequence::SequenceConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;

@@ -4,59 +4,17 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
+use super::detect::photometric::GreyPair;
+use super::detect::static_flow::{BackgroundFlow, StaticFlow};
 use super::detect::{DetectConfig, detect};
-use super::multi::{Assignment, Held, Tracker, TrackerConfig};
-use super::photometric::GreyPair;
-use super::static_flow::{BackgroundFlow, StaticFlow};
+use super::tracker::multi::{Assignment, Held, Tracker, TrackerConfig};
+use super::tracker::tracks::{FrameRecord, ObjectTrack, Tracks};
 use crate::error::{Error, Result};
 use crate::io;
 use crate::scene::truth::Truth;
 use crate::types::Flow;
-
-/// One object in one frame, as written to `tracks.json`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct FrameRecord {
-    pub frame: usize,
-    pub centroid: [f64; 2],
-    pub speed: f64,
-    /// Radians; null while the object is still.
-    pub direction: Option<f64>,
-    pub observed: bool,
-    /// Horizon (frames, as a string key) → predicted centroid.
-    pub predicted: BTreeMap<String, [f64; 2]>,
-    /// The whole predicted path, frames n + 1 … n + K (kept in memory for plots, not written).
-    #[serde(skip)]
-    pub path: Vec<[f64; 2]>,
-}
-
-/// One object's track.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct ObjectTrack {
-    pub id: usize,
-    pub frames: Vec<FrameRecord>,
-}
-
-/// `tracks.json`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Tracks {
-    pub objects: Vec<ObjectTrack>,
-    /// Wall time of detection, filtering and prediction per frame (flow estimation excluded).
-    #[serde(default)]
-    pub ms_per_frame: Option<f64>,
-    /// The background-flow magnitude of the flows tracked, when a truth was given.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub background_flow: Option<BackgroundFlow>,
-}
-
-impl Tracks {
-    /// Reads a `tracks.json`.
-    pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| Error::format(path, e.to_string()))
-    }
-}
 
 /// Options of a run: a `TrackConfig` settled by its profile (`TrackConfig::options`).
 #[derive(Clone, Debug)]
@@ -159,7 +117,7 @@ pub struct DebugRegion {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub colour: Option<[f64; 3]>,
     pub mean_flow: [f64; 2],
-    /// The motion the frames confirm (`track::align`), when the alignment ran and beat the
+    /// The motion the frames confirm (`track::detect::align`), when the alignment ran and beat the
     /// mean flow.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub aligned: Option<[f64; 2]>,
@@ -212,16 +170,16 @@ pub fn track_flows(
             ),
         ));
     }
-    let mut prev: Option<super::photometric::GreyFrame> = None;
+    let mut prev: Option<super::detect::photometric::GreyFrame> = None;
     let steps = files.iter().enumerate().map(move |(n, f)| {
         let flow = io::read_flow(f)?;
         let pair = match frames {
             Some(fr) => {
                 let a = match prev.take() {
                     Some(a) => a,
-                    None => super::photometric::GreyFrame::new(&io::read_image(&fr[n])?),
+                    None => super::detect::photometric::GreyFrame::new(&io::read_image(&fr[n])?),
                 };
-                let b = super::photometric::GreyFrame::new(&io::read_image(&fr[n + 1])?);
+                let b = super::detect::photometric::GreyFrame::new(&io::read_image(&fr[n + 1])?);
                 let pair = GreyPair::of(&a, &b).ok_or_else(|| {
                     Error::invalid(
                         format!("frames {} and {}", fr[n].display(), fr[n + 1].display()),

@@ -1,9 +1,9 @@
 use std::path::Path;
 
 use super::*;
-use crate::track::background::BackgroundModel;
+use crate::track::detect::background::BackgroundModel;
 use crate::track::experiment::ExperimentConfig;
-use crate::track::mtp::MtpConfig;
+use crate::track::motion::mtp::MtpConfig;
 
 fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
     let p = dir.join(name);
@@ -27,7 +27,7 @@ fn the_profiles_are_the_old_resolved_defaults() {
         assert_eq!(d.background, BackgroundModel::Affine);
         assert!(d.check_background && d.photometric && d.trim && d.retry_aligned);
         assert_eq!((d.max_residual_ratio, d.change_k), (0.8, 4.0));
-        assert_eq!(d.align_weights, crate::track::align::ALIGN_WEIGHTS);
+        assert_eq!(d.align_weights, crate::track::detect::align::ALIGN_WEIGHTS);
         assert_eq!(
             (d.place.frames, d.place.min_frames, d.place.split),
             (30, 10, 0.5)
@@ -47,7 +47,10 @@ fn the_profiles_are_the_old_resolved_defaults() {
             (m.position_r, m.motion_r, m.aligned_motion_r),
             (1.0, 0.25, Some(0.25))
         );
-        assert_eq!(m.motion_source, crate::track::mtp::MotionSource::Auto);
+        assert_eq!(
+            m.motion_source,
+            crate::track::motion::mtp::MotionSource::Auto
+        );
         let t = &c.tracker;
         assert_eq!(
             (t.confirm, t.max_gate_factor, t.match_cascade),

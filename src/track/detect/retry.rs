@@ -2,10 +2,10 @@
 //! confirm: where an estimated flow falls short on a small mover (MMS gives a 16-px disc that
 //! moves 5 px/frame 1–2 px/frame), warping frame 2 with it explains little of the change and
 //! the region fails, frame after frame, though the frames show the object moving. Such a
-//! region is retried with its aligned motion (`track::align`) and, where that explains the
+//! region is retried with its aligned motion (`track::detect::align`) and, where that explains the
 //! change, accepted as a *weak* detection: as ByteTrack's low-score detections, it continues a
-//! track (`track::associate`; a tentative one too, by default) but starts none
-//! (`track::multi`), so the spurious blobs a search over shifts can explain by chance make no
+//! track (`track::tracker::associate`; a tentative one too, by default) but starts none
+//! (`track::tracker::multi`), so the spurious blobs a search over shifts can explain by chance make no
 //! tracks.
 
 use super::align::align;

@@ -1,13 +1,12 @@
 //! Splitting a merged region between the tracks it hides (Note S13's many objects, Movie S2):
 //! where two movers meet, an estimated flow joins them into one blob whose centre and flow
 //! belong to neither. With a still camera the frame still shows both: from each hidden
-//! track's prediction, the mean shift on the foreground (`track::still_background`) finds its
+//! track's prediction, the mean shift on the foreground (`track::detect::still_background`) finds its
 //! object, and the region becomes one part per track, each placed on its object. Where the
 //! foreground shows only one object near both predictions (one hides the other), the region
-//! stays whole and the tracks on it coast (`track::associate`'s merge).
+//! stays whole and the tracks on it coast (`track::tracker::associate`'s merge).
 
-use super::associate::covers;
-use super::roi::Region;
+use super::roi::{Region, covers};
 
 /// A confirmed track where it is expected in this frame: the seeds of a split.
 #[derive(Clone, Copy, Debug, PartialEq)]

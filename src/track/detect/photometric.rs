@@ -11,7 +11,7 @@ use super::still_background::ColourFrame;
 use crate::types::{Flow, Image};
 
 /// One frame as a grey plane, lightly smoothed (3×3 box) against sensor noise, with its
-/// 8-bit colour samples for the still background (`track::still_background`); cheap to clone.
+/// 8-bit colour samples for the still background (`track::detect::still_background`); cheap to clone.
 #[derive(Clone, Debug)]
 pub struct GreyFrame {
     pub width: usize,

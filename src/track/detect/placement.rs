@@ -1,7 +1,7 @@
 //! What the placement on the frame (Notes S13–S15: the object rather than the flow's blob) is
 //! given and gives: the frames it reads (`ColourFrame`), its settings (`PlaceConfig`) and what
-//! it did with a region (`Placement`). The still background (`track::still_background`) and the
-//! frame's foreground (`track::foreground`) both read them.
+//! it did with a region (`Placement`). The still background (`track::detect::still_background`) and the
+//! frame's foreground (`track::detect::foreground`) both read them.
 
 use std::sync::Arc;
 
@@ -95,13 +95,13 @@ pub struct PlaceConfig {
     /// this many times the sum of their equivalent radii (the foreground near it may be the
     /// other's: a crossing, or a fragment beside its object).
     pub crowd: f64,
-    /// Splitting a merged region (`track::split`): the foreground's centres found from the
+    /// Splitting a merged region (`track::detect::split`): the foreground's centres found from the
     /// predictions of the tracks it hides must lie at least this share of the sum of their
     /// radii apart, or the region stays one (one object hides the other). 0 turns it off.
     pub split: f64,
     /// The colour difference is weighed in the camera's noise at each pixel's level (each
     /// channel's temporal spread as a function of its level, measured on the still
-    /// background: `track::noise_level`) rather than in 8-bit levels: a mover over a dark,
+    /// background: `track::detect::noise_level`) rather than in 8-bit levels: a mover over a dark,
     /// quiet part of the background counts as surely as over a bright, noisy one.
     pub pixel_noise: bool,
     /// The floor of that spread (8-bit levels) with `pixel_noise`: quantisation makes a flat
@@ -212,7 +212,7 @@ pub enum Placement {
     /// Kept at the flow's centroid, and why.
     Kept(String),
     /// A merged region split between the tracks it hides: the foreground's centre found from
-    /// each one's prediction, in the order of the seeds (`track::split`).
+    /// each one's prediction, in the order of the seeds (`track::detect::split`).
     Split { to: Vec<(f64, f64)> },
 }
 

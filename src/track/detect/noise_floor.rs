@@ -2,20 +2,15 @@
 //! flow's jitter): the median of its values plus `k` robust standard deviations, 1.4826 × the
 //! median absolute deviation, so a few movers do not raise it and a jittering background does.
 
+use crate::track::robust;
 use crate::types::Flow;
 
 /// The median of the finite `values` and the floor median + `k` · 1.4826 · MAD; `None` when no
 /// value is finite.
 pub fn robust_floor(mut values: Vec<f32>, k: f64) -> Option<(f64, f64)> {
     values.retain(|v| v.is_finite());
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let median = *values.select_nth_unstable_by(mid, f32::total_cmp).1;
-    values.iter_mut().for_each(|v| *v = (*v - median).abs());
-    let mad = *values.select_nth_unstable_by(mid, f32::total_cmp).1;
-    Some((median as f64, median as f64 + k * 1.4826 * mad as f64))
+    let (median, mad) = robust::upper_median_mad(&mut values)?;
+    Some((median as f64, robust::floor(median as f64, mad as f64, k)))
 }
 
 /// Median flow magnitude plus `k` robust standard deviations; 0 when `k` is 0. Unknown

@@ -1,7 +1,7 @@
 //! The motion-consistency test of a tentative track (Note S13's flow *is* the displacement to
 //! the next frame): over the confirmation window, the centre must move as the sum of the
 //! regions' flows says, or further along it for a flow that underestimates small movers, or,
-//! where the frames measured the regions' motion (`track::align`), as that motion says and
+//! where the frames measured the regions' motion (`track::detect::align`), as that motion says and
 //! clearly away from where it started. A blob of spurious flow stays where it is while its
 //! flow says it moves, and fails both.
 

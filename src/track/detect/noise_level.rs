@@ -5,6 +5,8 @@
 //! be weighed in the noise of its pixel's brightness. Dark parts of a frame are quieter than
 //! bright ones; a mover over them differs by fewer levels but as surely.
 
+use crate::track::robust;
+
 /// Width of a level bin (8-bit levels): 16 bins over 0–255.
 const BIN: f32 = 16.0;
 const BINS: usize = 16;
@@ -35,7 +37,11 @@ impl NoiseLevel {
             let measured: Vec<Option<f32>> = (0..BINS)
                 .map(|i| {
                     let v = &mut bins[c * BINS + i];
-                    (v.len() >= MIN_SAMPLES).then(|| 1.4826 * median(v))
+                    if v.len() >= MIN_SAMPLES {
+                        robust::median(v).map(robust::sigma_f32)
+                    } else {
+                        None
+                    }
                 })
                 .collect();
             for (i, s) in row.iter_mut().enumerate() {
@@ -62,17 +68,6 @@ impl NoiseLevel {
 
 fn bin(level: f32) -> usize {
     ((level / BIN).max(0.0) as usize).min(BINS - 1)
-}
-
-/// The median of `v` (not empty), the two middle values averaged for an even count.
-pub(super) fn median(v: &mut [f32]) -> f32 {
-    v.sort_unstable_by(f32::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
 }
 
 #[cfg(test)]

@@ -22,7 +22,7 @@ pub struct Region {
     /// Mean flow vector (px/frame): the region's displacement to the next frame.
     pub mean_flow: (f64, f64),
     /// The object's centre in the frame, when the still background found it
-    /// (`track::still_background`): the trajectory filter measures this instead of the
+    /// (`track::detect::still_background`): the trajectory filter measures this instead of the
     /// flow's centroid, as does confirmation's consistency test; association keeps the
     /// flow's.
     pub placed: Option<(f64, f64)>,
@@ -31,7 +31,7 @@ pub struct Region {
     /// object's centre where it lies nearer the track's prediction than the flow's centroid
     /// does, within `TrackerConfig::foreground_gate` of the region's radius of it.
     pub foreground: Option<(f64, f64)>,
-    /// The region's motion (px/frame) that the frames confirm (`track::align`), when the
+    /// The region's motion (px/frame) that the frames confirm (`track::detect::align`), when the
     /// alignment ran and explained the frames better than the mean flow: the speed and
     /// direction samples of the trajectory fits (Eqs. S20–S21) take it for the flow's.
     pub aligned: Option<(f64, f64)>,
@@ -198,6 +198,12 @@ impl Region {
             aligned: None,
         }
     }
+}
+
+/// True when `point` lies within the equivalent radius √(area/π) of region `d`.
+pub fn covers(d: &Region, point: (f64, f64)) -> bool {
+    (d.centroid.0 - point.0).hypot(d.centroid.1 - point.1)
+        <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
 }
 
 #[cfg(test)]

@@ -64,27 +64,27 @@ pub struct DetectConfig {
     pub grow_reach: usize,
     /// With the change test: each grown region loses the pixels whose 5×5 neighbourhood the
     /// background's motion explains better than the region's motion, by more than the change
-    /// test's level (the halo an estimated flow leaves around a mover; `track::trim`).
+    /// test's level (the halo an estimated flow leaves around a mover; `track::detect::trim`).
     pub trim: bool,
     /// With frames: each accepted region's motion is the translation that best maps its
-    /// colours in frame n onto frame n + 1 (`track::align`, searched around its mean flow),
+    /// colours in frame n onto frame n + 1 (`track::detect::align`, searched around its mean flow),
     /// where that explains the frames better than the mean flow: the trajectory fits' speed
     /// and direction samples (`Region::aligned`). `null` (the default): on for an estimated
     /// flow, off for a given one (`TrackConfig::resolved`, by the profile).
     pub align: Option<bool>,
     /// The alignment searches at most this many pixels from the mean flow on each axis.
     pub align_reach: usize,
-    /// The weights of the R, G and B residuals in the alignment (`track::align::ALIGN_WEIGHTS`:
+    /// The weights of the R, G and B residuals in the alignment (`track::detect::align::ALIGN_WEIGHTS`:
     /// green first, as the metalens PSF is sharp in green and broad in red and blue; `[1, 1, 1]`
     /// for a camera whose channels are equally sharp). Grey frames ignore them.
     pub align_weights: [f64; 3],
     /// With the alignment on: a region that fails the photometric test with its flow is
     /// retried with its aligned motion and, where that passes, accepted as a weak detection
-    /// that continues a confirmed track but starts none (`track::retry`).
+    /// that continues a confirmed track but starts none (`track::detect::retry`).
     pub retry_aligned: bool,
     /// With frames and a still camera: each accepted region's centroid moves to its object in
     /// the frame (where it differs from the temporal median of the last frames;
-    /// `track::still_background`).
+    /// `track::detect::still_background`).
     pub place: PlaceConfig,
 }
 
@@ -249,7 +249,7 @@ impl FrameDetection {
     /// background, which then keeps the frame. The camera counts as still when the frames did
     /// not support the fitted background motion or when that motion is small. A region over
     /// the predictions of two or more `seeds` (the confirmed tracks) is split between them
-    /// where the foreground shows an object near each (`track::split`): its parts take its
+    /// where the foreground shows an object near each (`track::detect::split`): its parts take its
     /// place in the candidates, one per track.
     pub fn place(&mut self, model: &mut StillBackground, frame: &ColourFrame, seeds: &[Seed]) {
         let camera = match self.rejected_background {

@@ -1,11 +1,11 @@
 //! The multi-object tracker's settings (Note S13's many objects, Movie S2): gates,
 //! confirmation, patience, fragments, appearance and re-identification, with their defaults.
-//! Association (`track::associate`) and the tracker's frame step (`track::multi`) read them.
+//! Association (`track::tracker::associate`) and the tracker's frame step (`track::tracker::multi`) read them.
 
 use serde::{Deserialize, Serialize};
 
-use super::mtp::MtpConfig;
 use crate::error::{Error, Result};
+use crate::track::motion::mtp::MtpConfig;
 
 /// Tracker settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -56,7 +56,7 @@ pub struct TrackerConfig {
     /// extrapolation that no measurement has checked for that long (SORT reports matched
     /// tracks only, i.e. 0 here).
     pub max_coast_reported: usize,
-    /// The appearance cue (`track::appearance`, with frames): a detection whose colour lies
+    /// The appearance cue (`track::tracker::appearance`, with frames): a detection whose colour lies
     /// more than `appearance_k` standard deviations from a track's running colour (each
     /// channel's at least `appearance_floor` 8-bit levels) is not matched to it, and each
     /// standard deviation adds `appearance_px` to the matching cost (px), so where two objects
@@ -86,7 +86,7 @@ pub struct TrackerConfig {
     /// deviations (`appearance_floor` at least); of several, the nearest in colour. Both need
     /// colours (frames).
     pub reid_k: f64,
-    /// A weak detection (`track::retry`: a region that passed the photometric test only with
+    /// A weak detection (`track::detect::retry`: a region that passed the photometric test only with
     /// the motion the frames confirm) may continue a tentative track, one that a detection
     /// which passed with its flow started, as well as a confirmed one; either way it starts
     /// none. Off, only confirmed tracks take weak detections (ByteTrack's second association):

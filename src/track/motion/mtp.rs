@@ -8,8 +8,8 @@ use std::collections::VecDeque;
 use super::forecast_score::ForecastScores;
 use super::kalman::{ConstantVelocity, RandomWalk};
 use super::predict::{fit_motion, supported_order};
-use super::roi::Region;
 use crate::error::{Error, Result};
+use crate::track::detect::roi::Region;
 
 /// Measured frames before a track's forecasts enter `Method::Select`'s record (the
 /// tracker's confirmation window).
@@ -24,7 +24,7 @@ pub enum Method {
     /// The baseline: the position Kalman filter's velocity held constant.
     ConstantVelocity,
     /// For each horizon k, whichever of the two forecast this track better over its own
-    /// recent past (`track::forecast_score`): the polynomial fit until both have been
+    /// recent past (`track::motion::forecast_score`): the polynomial fit until both have been
     /// checked a few times at that horizon, and unless the constant velocity's record is
     /// clearly better (`forecast_score::SWITCH_RATIO`). The fit wins on steadily turning
     /// paths, the constant velocity where the direction oscillates within the window.

@@ -6,6 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::track::robust;
 use crate::types::Flow;
 
 /// Which global motion is fitted.
@@ -121,10 +122,8 @@ pub fn fit(flow: &Flow, model: BackgroundModel, samples: usize) -> GlobalMotion 
     }
     // Start from the component-wise median: robust even when the first least squares would
     // be pulled by movers.
-    let median = |mut v: Vec<f64>| {
-        let mid = v.len() / 2;
-        *v.select_nth_unstable_by(mid, f64::total_cmp).1
-    };
+    // (`pts` is not empty, nor are the residuals.)
+    let median = |mut v: Vec<f64>| robust::upper_median(&mut v).unwrap_or(0.0);
     g.params[0] = median(pts.iter().map(|p| p.2).collect());
     g.params[3] = median(pts.iter().map(|p| p.3).collect());
     for _ in 0..10 {
@@ -135,7 +134,7 @@ pub fn fit(flow: &Flow, model: BackgroundModel, samples: usize) -> GlobalMotion 
                 (fu - a[0] - a[1] * x - a[2] * y).hypot(fv - a[3] - a[4] * x - a[5] * y)
             })
             .collect();
-        let delta = 1.345 * (1.4826 * median(res.clone())).max(0.01);
+        let delta = 1.345 * robust::sigma(median(res.clone())).max(0.01);
         // Weighted normal equations; u and v share the design [1, x, y] (or [1]).
         let mut ata = [[0.0f64; 3]; 3];
         let (mut atu, mut atv) = ([0.0f64; 3], [0.0f64; 3]);

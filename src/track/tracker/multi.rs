@@ -17,13 +17,14 @@ use std::collections::VecDeque;
 use serde::Serialize;
 
 use super::appearance::Appearance;
-use super::associate::{Association, Tracked, associate, covers};
-use super::mtp::{Estimate, Mtp};
+use super::associate::{Association, Tracked, associate};
 use super::reid::{Candidate, Lost, reid_distance};
-use super::roi::Region;
-use super::split::Seed;
 pub use super::tracker_config::TrackerConfig;
 use crate::error::Result;
+use crate::track::detect::roi::{Region, covers};
+use crate::track::detect::split::Seed;
+use crate::track::motion::mtp::{Estimate, Mtp};
+use crate::track::robust;
 
 /// One track's estimate in one frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,11 +52,7 @@ fn adopt_foreground(d: &Region, predicted: (f64, f64), gate: f64) -> Option<Regi
 /// The median of `values`; `None` when there are none.
 fn median(values: &VecDeque<usize>) -> Option<f64> {
     let mut v: Vec<usize> = values.iter().copied().collect();
-    if v.is_empty() {
-        return None;
-    }
-    let mid = v.len() / 2;
-    Some(*v.select_nth_unstable(mid).1 as f64)
+    robust::upper_median(&mut v).map(|m| m as f64)
 }
 
 use super::consistency::{Consistency, Hit};
@@ -150,7 +147,7 @@ impl Tracker {
     }
 
     /// The confirmed tracks seen within the confirmation window, where they are expected in the
-    /// next frame: the seeds of a merged region's split (`track::split`).
+    /// next frame: the seeds of a merged region's split (`track::detect::split`).
     pub fn seeds(&self) -> Vec<Seed> {
         self.tracks
             .iter()
@@ -389,7 +386,7 @@ impl Tracker {
         self.tracks
             .retain(|t| t.misses <= patience && (t.confirmed || t.misses == 0));
         for (j, d) in detections.iter().enumerate() {
-            // A weak detection (`track::retry`) continues a track, never starts one.
+            // A weak detection (`track::detect::retry`) continues a track, never starts one.
             if used[j] || d.weak {
                 continue;
             }

@@ -495,7 +495,7 @@ fn a_foreground_centre_the_prediction_confirms_places_the_region() {
     assert_eq!(at(&d, (16.0, 50.0)), None, "already placed");
 }
 
-/// Weak detections (`track::retry`) alone start no track; after a track is confirmed on
+/// Weak detections (`track::detect::retry`) alone start no track; after a track is confirmed on
 /// detections that passed with their flow, weak ones carry it on under its ID.
 #[test]
 fn weak_detections_continue_a_track_but_start_none() {

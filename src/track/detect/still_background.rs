@@ -11,7 +11,7 @@
 //! frame's objects were (selective update, as in Koller et al. 1994 and Stauffer & Grimson
 //! 1999): a mover slower than its own diameter per half window otherwise stays in its
 //! background, and the foreground shows only its leading part. The foreground and the mean
-//! shift are `track::foreground`'s; this file keeps the frames, their objects and the verdicts.
+//! shift are `track::detect::foreground`'s; this file keeps the frames, their objects and the verdicts.
 
 use std::collections::VecDeque;
 

@@ -9,6 +9,7 @@
 use super::background::GlobalMotion;
 use super::photometric::GreyPair;
 use super::roi::padded_bbox;
+use crate::track::robust;
 use crate::types::Flow;
 
 /// The grown region of `seed` (flat indices into `rel`, the flow relative to the
@@ -111,12 +112,8 @@ fn median_motion(pixels: &[usize], rel: &Flow) -> Option<(f64, f64)> {
         .filter(|&&p| u[p].is_finite() && v[p].is_finite())
         .map(|&p| (u[p], v[p]))
         .unzip();
-    if us.is_empty() {
-        return None;
-    }
-    let mid = us.len() / 2;
-    let mu = *us.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
-    let mv = *vs.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
+    let mu = robust::upper_median(&mut us)?;
+    let mv = robust::upper_median(&mut vs)?;
     Some((mu as f64, mv as f64))
 }
 

@@ -1,7 +1,7 @@
 //! Association of one frame's detections with the tracks (Note S13's many objects, Movie S2):
 //! gated optimal assignment on the distance to each track's prediction (with its velocity and
 //! appearance gates and the appearance cost) over the detections that passed the photometric
-//! test with their flow, then the weak ones (`track::retry`) for the tracks left, confirmed
+//! test with their flow, then the weak ones (`track::detect::retry`) for the tracks left, confirmed
 //! or (`TrackerConfig::weak_continues_tentative`) tentative (ByteTrack's low-score
 //! detections, which go to confirmed tracks only), a second chance by distance alone for
 //! confirmed tracks still without a detection (ByteTrack's second association), and the
@@ -9,8 +9,8 @@
 
 use super::appearance::Appearance;
 use super::hungarian::assign;
-use super::roi::Region;
 use super::tracker_config::TrackerConfig;
+use crate::track::detect::roi::{Region, covers};
 
 /// What association needs to know of one track.
 pub struct Tracked<'a> {
@@ -173,12 +173,6 @@ fn only(cost: &[Vec<f64>], rows: &[usize], keep: impl Fn(usize) -> bool) -> Vec<
         .collect()
 }
 
-/// True when `point` lies within the equivalent radius √(area/π) of region `d`.
-pub fn covers(d: &Region, point: (f64, f64)) -> bool {
-    (d.centroid.0 - point.0).hypot(d.centroid.1 - point.1)
-        <= (d.pixels as f64 / std::f64::consts::PI).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -209,7 +203,7 @@ mod tests {
         }
     }
 
-    /// A weak detection (`track::retry`) goes to a track the others left, a tentative one
+    /// A weak detection (`track::detect::retry`) goes to a track the others left, a tentative one
     /// only with `weak_continues_tentative`, and a track takes a detection that passed with
     /// its flow before a weak one.
     #[test]

@@ -1,14 +1,15 @@
 //! Frame n's foreground against the still camera's background (Note S13's region of
 //! interest, measured on the frame): the per-pixel temporal median of the stored frames,
 //! leaving out in each the discs where its objects were (`PlaceConfig::mask`), each channel's
-//! difference from it in units of the camera's noise at that level (`track::noise_level`),
+//! difference from it in units of the camera's noise at that level (`track::detect::noise_level`),
 //! and the mean shift that finds an object's centre (Eq. S17's centroid) on the weight above
 //! the frame's noise floor (Comaniciu & Meer 2002).
 
 use std::collections::VecDeque;
 
-use super::noise_level::{self, NoiseLevel};
+use super::noise_level::NoiseLevel;
 use super::placement::{ColourFrame, PlaceConfig, Placement, disc};
+use crate::track::robust;
 
 /// Fewest frames a pixel's median leaves it uncovered in before the covered ones are left
 /// out (`PlaceConfig::mask`): the median of fewer is noise.
@@ -72,11 +73,8 @@ impl<'a> Foreground<'a> {
             fg.noise = Some(NoiseLevel::fit(samples.collect::<Vec<_>>(), floor as f32));
         }
         let mut d: Vec<f64> = grid.iter().map(|&(x, y)| fg.d(x, y)).collect();
-        if !d.is_empty() {
-            let med = median(&mut d);
-            let mut dev: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
-            let mad = median(&mut dev);
-            fg.level = med + k * 1.4826 * mad;
+        if let Some((med, mad)) = robust::upper_median_mad(&mut d) {
+            fg.level = robust::floor(med, mad, k);
         }
         fg
     }
@@ -113,15 +111,10 @@ impl<'a> Foreground<'a> {
                     n += 1;
                 }
             }
-            if n == 0 {
-                continue;
-            }
             let vals = &mut buf[..n];
             vals.sort_unstable();
-            let b = if n % 2 == 1 {
-                vals[n / 2] as f32
-            } else {
-                (vals[n / 2 - 1] as f32 + vals[n / 2] as f32) / 2.0
+            let Some(b) = robust::sorted_median(vals, f32::from) else {
+                continue;
             };
             *o = (
                 b,
@@ -254,12 +247,7 @@ fn median_deviation(samples: &[u8], b: f32) -> f32 {
     for (d, &v) in dev.iter_mut().zip(&samples[..n]) {
         *d = (v as f32 - b).abs();
     }
-    noise_level::median(&mut dev[..n])
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+    robust::median(&mut dev[..n]).unwrap_or(0.0)
 }
 
 #[cfg(test)]

@@ -6,19 +6,19 @@
 //! without an object is a *second track* when it lies on one object in at least half of its
 //! observed frames (that object picked up again under a new ID, as MOT's fragmentations),
 //! and *follows no object* otherwise (a false track). How much of each object the tracks
-//! cover, and IDF1 over the same matching, are `track::coverage`.
+//! cover, and IDF1 over the same matching, are `track::eval::coverage`.
 
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
 use super::coverage::{Coverage, coverage};
-use super::hungarian::assign;
-use super::run::Tracks;
-use super::static_flow::BackgroundFlow;
 use crate::error::{Error, Result};
 use crate::io::json::nan_if_null;
 use crate::scene::truth::Truth;
+use crate::track::detect::static_flow::BackgroundFlow;
+use crate::track::tracker::hungarian::assign;
+use crate::track::tracker::tracks::Tracks;
 
 /// Errors at one horizon.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -418,7 +418,7 @@ pub fn table(report: &TrackReport) -> String {
 mod tests {
     use super::*;
     use crate::scene::truth::TruthObject;
-    use crate::track::run::{FrameRecord, ObjectTrack};
+    use crate::track::tracker::tracks::{FrameRecord, ObjectTrack};
 
     fn truth() -> Truth {
         let line = |y: f64| TruthObject {

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::static_flow::BackgroundFlow;
+use crate::track::detect::static_flow::BackgroundFlow;
 
 /// One point of the whole system's error against run time: MMS at `scale` of the frame size
 /// (`crate::flow::scale`) after `iters` refinements.
