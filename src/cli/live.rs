@@ -274,30 +274,21 @@ pub(crate) const LIVE_HORIZONS: [usize; 3] = [1, 5, 15];
 /// The tracking settings: the config file (or the estimated profile's defaults, with
 /// `LIVE_HORIZONS`) and the flags' overrides.
 fn settings(a: &LiveArgs) -> Result<TrackConfig> {
-    let mut cfg = match &a.config {
+    let cfg = match &a.config {
         Some(p) => TrackConfig::from_file(p)?,
         None => TrackConfig {
             horizons: LIVE_HORIZONS.to_vec(),
             ..TrackConfig::default()
         },
     };
-    if let Some(p) = a.profile {
-        cfg.profile = Some(p);
-    }
-    if let Some(w) = &a.weights {
-        cfg.flow.weights = w.clone();
-    }
-    if a.iters.is_some() {
-        cfg.flow.iters = a.iters;
-    }
-    if let Some(c) = a.confirm {
-        cfg.tracker.confirm = c;
-    }
-    if let Some(h) = &a.horizons {
-        cfg.horizons = h.clone();
-    }
-    cfg.validate().map_err(crate::cli::track::flag_named)?;
-    Ok(cfg)
+    let flags = crate::cli::track::Overrides {
+        profile: a.profile,
+        weights: a.weights.as_deref(),
+        iters: a.iters,
+        confirm: a.confirm,
+        horizons: a.horizons.as_deref(),
+    };
+    flags.apply(cfg)
 }
 
 /// Sets frame size and quality through the camera's `/control` (port 80), each answer checked.

@@ -355,26 +355,49 @@ fn settings(a: &RunArgs) -> Result<TrackConfig> {
         Some(p) => TrackConfig::from_file(p)?,
         None => TrackConfig::default(),
     };
-    if let Some(p) = a.profile {
-        cfg.profile = Some(p);
-    }
-    if let Some(w) = &a.weights {
-        cfg.flow.weights = w.clone();
-    }
-    if a.iters.is_some() {
-        cfg.flow.iters = a.iters;
-    }
     if let Some(s) = a.scale {
         cfg.flow.scale = s;
     }
-    if let Some(c) = a.confirm {
-        cfg.tracker.confirm = c;
+    let flags = Overrides {
+        profile: a.profile,
+        weights: a.weights.as_deref(),
+        iters: a.iters,
+        confirm: a.confirm,
+        horizons: a.horizons.as_deref(),
+    };
+    flags.apply(cfg)
+}
+
+/// The flags `pins track` and `pins live` both lay over a tracking config.
+pub(crate) struct Overrides<'a> {
+    pub profile: Option<Profile>,
+    pub weights: Option<&'a str>,
+    pub iters: Option<usize>,
+    pub confirm: Option<usize>,
+    pub horizons: Option<&'a [usize]>,
+}
+
+impl Overrides<'_> {
+    /// `cfg` with the flags given laid over it, checked (an error names the flag).
+    pub(crate) fn apply(&self, mut cfg: TrackConfig) -> Result<TrackConfig> {
+        if let Some(p) = self.profile {
+            cfg.profile = Some(p);
+        }
+        if let Some(w) = self.weights {
+            cfg.flow.weights = w.to_string();
+        }
+        if self.iters.is_some() {
+            cfg.flow.iters = self.iters;
+        }
+        if let Some(c) = self.confirm {
+            cfg.tracker.confirm = c;
+        }
+        if let Some(h) = self.horizons {
+            cfg.horizons = h.to_vec();
+        }
+        cfg.validate().map_err(flag_named)?;
+        Ok(cfg)
     }
-    if let Some(h) = &a.horizons {
-        cfg.horizons = h.clone();
-    }
-    cfg.validate().map_err(flag_named)?;
-    Ok(cfg)
 }
 
 /// A settings error, with the flag that sets the key where there is one (the file's own
