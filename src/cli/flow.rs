@@ -168,9 +168,10 @@ pub(crate) struct InferArgs {
     /// Also write the Middlebury colour-wheel visualisation (PNG; a folder with --frames).
     #[arg(long)]
     viz: Option<PathBuf>,
-    /// Refinement iterations (the model's default when absent).
+    /// Refinement iterations: a count, or auto (at most the weights' own, stopping once the
+    /// flow settles); the weights' own when absent.
     #[arg(long)]
-    iters: Option<usize>,
+    iters: Option<pins::flow::iters::Iters>,
     /// What follows the network: variational (coarse-to-fine variational refinement) or none.
     #[arg(long, default_value = "variational")]
     refine: String,
@@ -178,6 +179,14 @@ pub(crate) struct InferArgs {
     /// large motions are found) or zero (RAFT's start).
     #[arg(long, default_value = "coarse")]
     start: String,
+    /// With --frames: start each pair from the previous pair's flow, carried forward (RAFT's
+    /// warm start on video), instead of --start.
+    #[arg(long)]
+    warm_start: bool,
+    /// With --frames: encode every frame twice, as the second and the first of its pairs (the
+    /// same flow, slower).
+    #[arg(long)]
+    no_reuse: bool,
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -361,8 +370,16 @@ pub(crate) fn infer(a: InferArgs) -> Result<()> {
     let predictor = Predictor::load_on(&a.weights, pins::flow::device::select(&a.device)?)?
         .with_refine(&refine)
         .with_coarse_start(pins::flow::infer::parse_start(&a.start)?);
-    let iters = a.iters.unwrap_or(predictor.config.iters);
-    for pair in pair_flows_scaled(&predictor, frames.as_slice(), iters, a.scale) {
+    let weights_iters = predictor.config.iters;
+    let (iters, stop_px) = a
+        .iters
+        .map_or((weights_iters, None), |n| n.resolve(weights_iters));
+    let video = pins::flow::video::VideoOptions {
+        reuse: !a.no_reuse,
+        warm_start: a.warm_start,
+        stop_px,
+    };
+    for pair in pair_flows_scaled(&predictor, frames.as_slice(), iters, a.scale, video)? {
         let pair = pair?;
         let (flow, (out, viz)) = (&pair.flow, &outputs[pair.index]);
         io::write_flow(out, flow)?;
@@ -370,12 +387,13 @@ pub(crate) fn infer(a: InferArgs) -> Result<()> {
             io::write_image(v, &flow_to_image(flow, None), BitDepth::Eight)?;
         }
         println!(
-            "{} → {}: {}x{}, max |flow| {:.2} px, {iters} iterations, {:.0} ms",
+            "{} → {}: {}x{}, max |flow| {:.2} px, {} iterations, {:.0} ms",
             frames[pair.index].display(),
             out.display(),
             flow.width(),
             flow.height(),
             flow.max_magnitude(),
+            pair.iters,
             pair.ms
         );
     }

@@ -51,9 +51,17 @@ pub(crate) struct LiveArgs {
     /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// MMS refinement iterations (flow.iters; default: the weights' own).
+    /// MMS refinement iterations (flow.iters): a count, or auto (at most the weights' own,
+    /// stopping once the flow settles); default: the weights' own.
     #[arg(long)]
-    iters: Option<usize>,
+    iters: Option<pins::flow::iters::Iters>,
+    /// Start each pair's MMS from the previous pair's flow, carried forward (flow.warm_start).
+    #[arg(long)]
+    warm_start: bool,
+    /// Encode every frame twice, as the first and second of its pairs (flow.reuse false): the
+    /// same flow, slower.
+    #[arg(long)]
+    no_reuse: bool,
     /// Downscale factor in (0, 1] applied (after stitching) before the flow.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
@@ -127,7 +135,7 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
     let cfg = settings(&a)?;
     let track = cfg.options(Profile::Estimated, false)?;
     let predictor = cfg.flow.predictor(pins::flow::device::select(&a.device)?)?;
-    let iters = cfg.flow.iters_for(&predictor);
+    let (iters, video) = cfg.flow.iters_for(&predictor);
     let stitcher = match &a.calib {
         Some(p) => {
             let text =
@@ -145,6 +153,7 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
             scale: a.scale,
             flow_scale: cfg.flow.scale,
             iters,
+            video,
             stitcher,
             track,
         },
@@ -285,6 +294,8 @@ fn settings(a: &LiveArgs) -> Result<TrackConfig> {
         profile: a.profile,
         weights: a.weights.as_deref(),
         iters: a.iters,
+        warm_start: a.warm_start,
+        no_reuse: a.no_reuse,
         confirm: a.confirm,
         horizons: a.horizons.as_deref(),
     };

@@ -67,9 +67,17 @@ struct RunArgs {
     /// default here), mms-small-real or default (= mms-small-real).
     #[arg(long)]
     weights: Option<String>,
-    /// MMS refinement iterations for --frames (flow.iters; default: the weights' own).
+    /// MMS refinement iterations (flow.iters): a count, or auto (at most the weights' own,
+    /// stopping once the flow settles); default: the weights' own.
     #[arg(long)]
-    iters: Option<usize>,
+    iters: Option<pins::flow::iters::Iters>,
+    /// Start each pair's MMS from the previous pair's flow, carried forward (flow.warm_start).
+    #[arg(long)]
+    warm_start: bool,
+    /// Encode every frame twice, as the first and second of its pairs (flow.reuse false): the
+    /// same flow, slower.
+    #[arg(long)]
+    no_reuse: bool,
     /// With --frames: run MMS at this multiple of the frame size, in (0, 4] (flow.scale;
     /// default 1): below 1 faster, above 1 small movers are seen larger. Tracks stay in the
     /// frame's pixels.
@@ -155,26 +163,28 @@ fn run(a: RunArgs) -> Result<()> {
         (None, Some(dir)) => {
             let files = io::frame_files(dir)?;
             let predictor = cfg.flow.predictor(pins::flow::device::select(&a.device)?)?;
-            let iters = cfg.flow.iters_for(&predictor);
+            let (iters, video) = cfg.flow.iters_for(&predictor);
             let mut flow_ms = 0.0;
             let mut prev: Option<GreyFrame> = None;
             let flows =
-                pair_flows_scaled(&predictor, files.as_slice(), iters, cfg.flow.scale).map(|p| {
-                    let p = p?;
-                    flow_ms += p.ms;
-                    let first = match prev.take() {
-                        Some(g) => g,
-                        None => GreyFrame::new(&io::read_image(&files[p.index])?),
-                    };
-                    let second = GreyFrame::new(&io::read_image(&files[p.index + 1])?);
-                    let pair = GreyPair::of(&first, &second);
-                    prev = Some(second);
-                    Ok(tr::FlowStep {
-                        name: files[p.index].display().to_string(),
-                        flow: p.flow,
-                        frames: pair,
-                    })
-                });
+                pair_flows_scaled(&predictor, files.as_slice(), iters, cfg.flow.scale, video)?.map(
+                    |p| {
+                        let p = p?;
+                        flow_ms += p.ms;
+                        let first = match prev.take() {
+                            Some(g) => g,
+                            None => GreyFrame::new(&io::read_image(&files[p.index])?),
+                        };
+                        let second = GreyFrame::new(&io::read_image(&files[p.index + 1])?);
+                        let pair = GreyPair::of(&first, &second);
+                        prev = Some(second);
+                        Ok(tr::FlowStep {
+                            name: files[p.index].display().to_string(),
+                            flow: p.flow,
+                            frames: pair,
+                        })
+                    },
+                );
             let run = tr::track_sequence(flows, &opts, truth.as_ref())?;
             let n = files.len() - 1;
             (run, n, Some(flow_ms / n as f64))
@@ -362,6 +372,8 @@ fn settings(a: &RunArgs) -> Result<TrackConfig> {
         profile: a.profile,
         weights: a.weights.as_deref(),
         iters: a.iters,
+        warm_start: a.warm_start,
+        no_reuse: a.no_reuse,
         confirm: a.confirm,
         horizons: a.horizons.as_deref(),
     };
@@ -372,7 +384,9 @@ fn settings(a: &RunArgs) -> Result<TrackConfig> {
 pub(crate) struct Overrides<'a> {
     pub profile: Option<Profile>,
     pub weights: Option<&'a str>,
-    pub iters: Option<usize>,
+    pub iters: Option<pins::flow::iters::Iters>,
+    pub warm_start: bool,
+    pub no_reuse: bool,
     pub confirm: Option<usize>,
     pub horizons: Option<&'a [usize]>,
 }
@@ -388,6 +402,12 @@ impl Overrides<'_> {
         }
         if self.iters.is_some() {
             cfg.flow.iters = self.iters;
+        }
+        if self.warm_start {
+            cfg.flow.warm_start = true;
+        }
+        if self.no_reuse {
+            cfg.flow.reuse = false;
         }
         if let Some(c) = self.confirm {
             cfg.tracker.confirm = c;

@@ -170,6 +170,158 @@ pub fn predict_flow_from(
     device: &Device,
     init: Option<&Flow>,
 ) -> Result<Flow> {
+    let start = match init {
+        Some(f) => Start::Flow(f),
+        None => Start::Zero,
+    };
+    let run = Network {
+        model,
+        config,
+        device,
+    };
+    Ok(run.pair(img1, img2, iters, start, None, None)?.flow)
+}
+
+/// Where a network run starts.
+pub enum Start<'a> {
+    Zero,
+    /// A flow at the pair's size, in pixels.
+    Flow(&'a Flow),
+    /// A flow on the network's grid of the padded pair (`[1, 2, H'/8, W'/8]`, 1/8-resolution
+    /// pixels).
+    Grid(Tensor<4>),
+}
+
+/// The last frame a network run saw, kept by a caller that runs the frames of a video in
+/// order: its feature encoding (the first frame's of the next pair) and the grid flow that
+/// ended at it (the next pair's warm start).
+pub struct LastFrame {
+    pub image: Image,
+    /// `[1, C, H'/8, W'/8]`
+    pub features: Tensor<4>,
+    /// `[1, 2, H'/8, W'/8]`, 1/8-resolution pixels.
+    pub flow8: Tensor<4>,
+}
+
+impl LastFrame {
+    /// Whether this is `image` (same size, same pixels): then what it holds belongs to it.
+    pub fn is(&self, image: &Image) -> bool {
+        self.image.shape() == image.shape() && self.image.data() == image.data()
+    }
+}
+
+/// One pair's network output.
+pub struct NetworkPair {
+    pub flow: Flow,
+    /// The updates run.
+    pub iters: usize,
+    /// Whether the first frame's features came from the caller's [`LastFrame`].
+    pub reused: bool,
+    /// The second frame, its features and the grid flow: the next pair's [`LastFrame`].
+    pub last: LastFrame,
+}
+
+/// A network and the device it runs on.
+pub struct Network<'a> {
+    pub model: &'a Mms,
+    pub config: &'a MmsConfig,
+    pub device: &'a Device,
+}
+
+impl Network<'_> {
+    /// Runs the network on one pair. Images must have the same size; grey images are repeated
+    /// to RGB. When `last` is the first image, its features are reused (the same arithmetic
+    /// as encoding it again: each image is encoded on its own); `stop` ends the updates early
+    /// (see [`Mms::iterate`]).
+    pub fn pair(
+        &self,
+        img1: &Image,
+        img2: &Image,
+        iters: usize,
+        start: Start<'_>,
+        last: Option<LastFrame>,
+        stop: Option<f32>,
+    ) -> Result<NetworkPair> {
+        check_pair(img1, img2, iters)?;
+        let device = self.device;
+        let (h, w) = (img1.height(), img1.width());
+        let padder = InputPadder::new(h, w, self.config.min_side());
+        let a = padder.pad(image_tensor(img1, device));
+        let b = padder.pad(image_tensor(img2, device));
+        let init = match start {
+            Start::Zero => None,
+            Start::Flow(f) if (f.height(), f.width()) == (h, w) => {
+                Some(init_tensor(f, &padder, device)?)
+            }
+            Start::Flow(f) => {
+                return Err(Error::shape(
+                    "initial flow",
+                    format!("{w}x{h}"),
+                    format!("{}x{}", f.width(), f.height()),
+                ));
+            }
+            Start::Grid(t) => Some(t),
+        };
+        let model = self.model;
+        let cached = last.filter(|l| l.is(img1)).map(|l| l.features);
+        let reused = cached.is_some();
+        let (f1, f2, context) = match cached {
+            // Only the new frame's features, beside the first frame's context.
+            Some(f1) => {
+                let (f2, context) = crate::flow::ops::both(
+                    &a,
+                    || model.features(b.clone()),
+                    || model.context(a.clone()),
+                );
+                (f1, f2, context)
+            }
+            // Both frames in one batch, as `Mms::forward_from` does.
+            None => {
+                let (features, context) = crate::flow::ops::both(
+                    &a,
+                    || model.features(Tensor::cat(vec![a.clone(), b.clone()], 0)),
+                    || model.context(a.clone()),
+                );
+                (
+                    features.clone().narrow(0, 0, 1),
+                    features.narrow(0, 1, 1),
+                    context,
+                )
+            }
+        };
+        let out = model.iterate(f1, f2.clone(), context, iters, false, init, stop);
+        let pred = out
+            .predictions
+            .into_iter()
+            .last()
+            .ok_or_else(|| Error::invalid("model", "no prediction"))?;
+        let flow = padder.unpad(pred); // [1, 2, H, W]
+        let data: Vec<f32> = flow
+            .into_data()
+            .try_to_vec::<f32>()
+            .map_err(|e| Error::invalid("model output", format!("{e:?}")))?;
+        let flow = Flow::from_vec(h, w, data)?;
+        if flow.data().iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid(
+                "model output",
+                "the network produced non-finite flow",
+            ));
+        }
+        Ok(NetworkPair {
+            flow,
+            iters: out.iters,
+            reused,
+            last: LastFrame {
+                image: img2.clone(),
+                features: f2,
+                flow8: out.flow8,
+            },
+        })
+    }
+}
+
+/// Checks a pair before the network sees it: the same size, finite pixels, 1..=256 updates.
+fn check_pair(img1: &Image, img2: &Image, iters: usize) -> Result<()> {
     if (img1.height(), img1.width()) != (img2.height(), img2.width()) {
         return Err(Error::shape(
             "second image",
@@ -185,39 +337,7 @@ pub fn predict_flow_from(
     }
     img1.check_nonempty("first image")?;
     img1.check_finite("first image")?;
-    img2.check_finite("second image")?;
-    let (h, w) = (img1.height(), img1.width());
-    let padder = InputPadder::new(h, w, config.min_side());
-    let a = padder.pad(image_tensor(img1, device));
-    let b = padder.pad(image_tensor(img2, device));
-    let init = match init {
-        Some(f) if (f.height(), f.width()) == (h, w) => Some(init_tensor(f, &padder, device)?),
-        Some(f) => {
-            return Err(Error::shape(
-                "initial flow",
-                format!("{w}x{h}"),
-                format!("{}x{}", f.width(), f.height()),
-            ));
-        }
-        None => None,
-    };
-    let pred = model
-        .forward_from(a, b, iters, false, init)
-        .pop()
-        .ok_or_else(|| Error::invalid("model", "no prediction"))?;
-    let flow = padder.unpad(pred); // [1, 2, H, W]
-    let data: Vec<f32> = flow
-        .into_data()
-        .try_to_vec::<f32>()
-        .map_err(|e| Error::invalid("model output", format!("{e:?}")))?;
-    let out = Flow::from_vec(h, w, data)?;
-    if out.data().iter().any(|v| !v.is_finite()) {
-        return Err(Error::invalid(
-            "model output",
-            "the network produced non-finite flow",
-        ));
-    }
-    Ok(out)
+    img2.check_finite("second image")
 }
 
 /// `flow` (`[2, H, W]`, pixels) padded as the images are and averaged over the 8×8 cells of

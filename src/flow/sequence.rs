@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::infer::Predictor;
-use super::scale::predict_scaled;
+use super::video::{VideoFlow, VideoOptions};
 use crate::error::Result;
 use crate::types::{Flow, Image};
 
@@ -50,34 +50,53 @@ pub struct PairFlow {
     pub flow: Flow,
     /// Milliseconds the network took (reading the frames excluded).
     pub ms: f64,
+    /// The updates run (fewer than asked where `--iters auto` stopped them).
+    pub iters: usize,
 }
 
 /// The flows of every consecutive pair of `frames` after `iters` refinements, lazily and in
-/// order: the first error ends the sequence for a caller that stops at it.
+/// order, each pair on its own: the first error ends the sequence for a caller that stops at
+/// it.
 pub fn pair_flows<'a, F: Frames + ?Sized>(
     predictor: &'a Predictor,
     frames: &'a F,
     iters: usize,
 ) -> impl Iterator<Item = Result<PairFlow>> + 'a {
-    pair_flows_scaled(predictor, frames, iters, 1.0)
+    let mut state = VideoFlow::independent();
+    (0..frames.count().saturating_sub(1)).map(move |index| {
+        let (a, b) = frames.pair(index)?;
+        let started = Instant::now();
+        let pair = state.pair(predictor, &a, &b, iters, 1.0)?;
+        Ok(PairFlow {
+            index,
+            flow: pair.flow,
+            ms: started.elapsed().as_secs_f64() * 1e3,
+            iters: pair.iters,
+        })
+    })
 }
 
 /// As `pair_flows`, with the network run at `scale` ∈ (0, 4] of the frames' size and the flow
-/// brought back to it (`super::scale`); the time includes the resampling.
+/// brought back to it (`super::scale`), and what carries from pair to pair (`super::video`);
+/// the time includes the resampling. A scale out of range or bad options are refused before
+/// any frame is read.
 pub fn pair_flows_scaled<'a, F: Frames + ?Sized>(
     predictor: &'a Predictor,
     frames: &'a F,
     iters: usize,
     scale: f64,
-) -> impl Iterator<Item = Result<PairFlow>> + 'a {
-    (0..frames.count().saturating_sub(1)).map(move |index| {
+    video: VideoOptions,
+) -> Result<impl Iterator<Item = Result<PairFlow>> + 'a> {
+    let mut state = VideoFlow::new(video, scale)?;
+    Ok((0..frames.count().saturating_sub(1)).map(move |index| {
         let (a, b) = frames.pair(index)?;
         let started = Instant::now();
-        let flow = predict_scaled(predictor, &a, &b, iters, scale)?;
+        let pair = state.pair(predictor, &a, &b, iters, 1.0)?;
         Ok(PairFlow {
             index,
-            flow,
+            flow: pair.flow,
             ms: started.elapsed().as_secs_f64() * 1e3,
+            iters: pair.iters,
         })
-    })
+    }))
 }

@@ -13,6 +13,7 @@ use super::reader::{Counts, Frame};
 use super::tracking::{LiveTracker, Object};
 use crate::error::Result;
 use crate::flow::infer::Predictor;
+use crate::flow::video::{VideoFlow, VideoOptions};
 use crate::imaging::resize::downscale;
 use crate::track::detect::photometric::{GreyFrame, GreyPair};
 use crate::track::run::TrackOptions;
@@ -27,6 +28,8 @@ pub struct PipelineConfig {
     /// `TrackConfig::flow.scale`), the flow brought back to it.
     pub flow_scale: f64,
     pub iters: usize,
+    /// What carries from pair to pair (`flow::video`): feature reuse, warm start, early stop.
+    pub video: VideoOptions,
     pub stitcher: Option<Stitcher>,
     pub track: TrackOptions,
 }
@@ -72,7 +75,11 @@ pub struct Pipeline {
     predictor: Predictor,
     cfg: PipelineConfig,
     tracker: LiveTracker,
+    video: VideoFlow,
     prev: Option<Prepared>,
+    /// The time step of the last flow (s): the warm start scales its motion by the next one's
+    /// ratio to it.
+    last_dt: Option<f64>,
     /// Processed frames so far.
     count: usize,
     /// The last flow and the frame it starts from, for the browser view.
@@ -93,11 +100,14 @@ struct Prepared {
 impl Pipeline {
     pub fn new(predictor: Predictor, cfg: PipelineConfig) -> Result<Self> {
         let tracker = LiveTracker::new(cfg.track.clone())?;
+        let video = VideoFlow::new(cfg.video, cfg.flow_scale)?;
         Ok(Self {
             predictor,
             cfg,
             tracker,
+            video,
             prev: None,
+            last_dt: None,
             count: 0,
             last_flow: None,
             size_changes: 0,
@@ -130,23 +140,34 @@ impl Pipeline {
             // A new frame size (the camera was reconfigured): nothing carries over.
             self.size_changes += 1;
             self.tracker.reset()?;
+            self.video.reset();
+            self.last_dt = None;
             self.prev = Some(cur);
             return Ok(None);
         }
+        let dt = step_seconds(&prev, &cur);
+        // Frames arrive at uneven gaps when the pipeline cannot keep up: the warm start's motion
+        // is scaled by this gap over the last one.
+        let gap_ratio = self
+            .last_dt
+            .map_or(1.0, |last| (dt / last).clamp(0.1, 10.0));
+        self.last_dt = Some(dt);
         let t1 = Instant::now();
-        let flow = crate::flow::scale::predict_scaled(
-            &self.predictor,
-            &prev.image,
-            &cur.image,
-            self.cfg.iters,
-            self.cfg.flow_scale,
-        )?;
+        let flow = self
+            .video
+            .pair(
+                &self.predictor,
+                &prev.image,
+                &cur.image,
+                self.cfg.iters,
+                gap_ratio,
+            )?
+            .flow;
         let flow_ms = t1.elapsed().as_secs_f64() * 1e3;
         let t2 = Instant::now();
         let pair = GreyPair::of(&prev.grey, &cur.grey);
         let objects = self.tracker.step(prev.index, &flow, pair.as_ref())?;
         let track_ms = t2.elapsed().as_secs_f64() * 1e3;
-        let dt = step_seconds(&prev, &cur);
         let line = Line {
             frame: prev.index,
             seq: prev.seq,

@@ -15,6 +15,8 @@ use super::run::TrackOptions;
 use super::tracker::tracker_config::TrackerConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;
+use crate::flow::iters::Iters;
+use crate::flow::video::VideoOptions;
 
 /// Where the flow comes from, which settles the settings that depend on it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -47,8 +49,9 @@ pub struct FlowConfig {
     /// A weights file, or built-in: `mms-small` (stage 3, the tracking default),
     /// `mms-small-real`, `default` (= `mms-small-real`).
     pub weights: String,
-    /// Refinement iterations; `null`: the weights' own (12 for the built-in ones).
-    pub iters: Option<usize>,
+    /// Refinement iterations: a count, `"auto"` (at most the weights' own, stopping once the
+    /// flow settles) or `null`: the weights' own (12 for the built-in ones).
+    pub iters: Option<Iters>,
     /// The multiple of the frame size MMS runs at, in (0, 4] (`flow::scale`): the flow is
     /// resampled to the frame, so tracks stay in its pixels.
     pub scale: f64,
@@ -57,6 +60,12 @@ pub struct FlowConfig {
     pub refine: String,
     /// Where MMS starts: `zero` (as the tracking clips were measured) or `coarse`.
     pub start: String,
+    /// Reuse each frame's feature encoding in the next pair (`flow::video`): the same flow,
+    /// two encoder passes per pair instead of three.
+    pub reuse: bool,
+    /// Start each pair from the previous pair's flow carried forward (`flow::video`) instead
+    /// of `start`.
+    pub warm_start: bool,
 }
 
 impl Default for FlowConfig {
@@ -67,6 +76,8 @@ impl Default for FlowConfig {
             scale: 1.0,
             refine: "none".into(),
             start: "zero".into(),
+            reuse: true,
+            warm_start: false,
         }
     }
 }
@@ -79,9 +90,19 @@ impl FlowConfig {
             .with_coarse_start(crate::flow::infer::parse_start(&self.start)?))
     }
 
-    /// The iterations to run: the configured ones, or the weights' own.
-    pub fn iters_for(&self, p: &Predictor) -> usize {
-        self.iters.unwrap_or(p.config.iters)
+    /// The most iterations to run (the configured ones, or the weights' own) and what carries
+    /// from pair to pair of a video.
+    pub fn iters_for(&self, p: &Predictor) -> (usize, VideoOptions) {
+        let (iters, stop_px) = self
+            .iters
+            .unwrap_or(Iters::Fixed(p.config.iters))
+            .resolve(p.config.iters);
+        let video = VideoOptions {
+            reuse: self.reuse,
+            warm_start: self.warm_start,
+            stop_px,
+        };
+        (iters, video)
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -91,13 +112,9 @@ impl FlowConfig {
                 format!("must be in (0, 4], got {}", self.scale),
             )
         })?;
-        if let Some(n) = self.iters
-            && !(1..=256).contains(&n)
-        {
-            return Err(Error::invalid(
-                "flow.iters",
-                format!("must be 1..=256, got {n}"),
-            ));
+        if let Some(n) = self.iters {
+            n.check()
+                .map_err(|e| Error::invalid("flow.iters", e.to_string()))?;
         }
         crate::flow::infer::parse_start(&self.start).map_err(|_| {
             Error::invalid(

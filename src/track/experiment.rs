@@ -19,6 +19,7 @@ use crate::dataset::sequence::SequenceConfig;
 use crate::error::{Error, Result};
 use crate::flow::infer::Predictor;
 use crate::flow::sequence::pair_flows_scaled;
+use crate::flow::video::VideoOptions;
 use crate::rng;
 use crate::scene::truth::Truth;
 use crate::types::Flow;
@@ -145,7 +146,11 @@ impl ExperimentConfig {
         if self.operating_points.is_empty() {
             vec![OperatingPoint {
                 scale: self.track.flow.scale,
-                iters: self.track.flow.iters.unwrap_or(weights_iters),
+                iters: self
+                    .track
+                    .flow
+                    .iters
+                    .map_or(weights_iters, |n| n.resolve(weights_iters).0),
             }]
         } else {
             self.operating_points.clone()
@@ -301,12 +306,14 @@ pub struct ClipData {
     pub frames: Option<Vec<GreyFrame>>,
 }
 
-/// The flows of a clip: exact, or MMS on its camera frames (`predictor` must then be given).
+/// The flows of a clip: exact, or MMS on its camera frames (`predictor` must then be given),
+/// carrying `video` from pair to pair.
 pub fn clip_flows(
     cfg: &SequenceConfig,
     source: FlowSource,
     predictor: Option<&Predictor>,
     point: OperatingPoint,
+    video: VideoOptions,
 ) -> Result<(ClipData, Option<f64>)> {
     let scene = &cfg.scene;
     let truth = Truth::of(scene)?;
@@ -327,7 +334,7 @@ pub fn clip_flows(
         }
         (FlowSource::Mms, Some(p)) => {
             let frames = camera_frames(cfg)?;
-            let pairs = pair_flows_scaled(p, frames.as_slice(), point.iters, point.scale)
+            let pairs = pair_flows_scaled(p, frames.as_slice(), point.iters, point.scale, video)?
                 .collect::<Result<Vec<_>>>()?;
             let ms = pairs.iter().map(|f| f.ms).sum::<f64>() / pairs.len() as f64;
             let flows = pairs.into_iter().map(|f| f.flow).collect();
@@ -398,6 +405,9 @@ pub fn run(
     };
     // Iterations count for MMS only.
     let weights_iters = predictor.as_ref().map_or(0, |p| p.config.iters);
+    let video = predictor
+        .as_ref()
+        .map_or_else(VideoOptions::default, |p| cfg.track.flow.iters_for(p).1);
     let options = (0..cfg.predictors.len())
         .map(|i| cfg.options(i))
         .collect::<Result<Vec<_>>>()?;
@@ -413,7 +423,7 @@ pub fn run(
     let several = cfg.points(weights_iters).len() > 1;
     for clip in &cfg.clips {
         for point in cfg.points(weights_iters) {
-            let (data, ms) = clip_flows(&clip.loaded, cfg.flow, predictor.as_ref(), point)?;
+            let (data, ms) = clip_flows(&clip.loaded, cfg.flow, predictor.as_ref(), point, video)?;
             flow_ms.extend(ms);
             let mms_point = (cfg.flow == FlowSource::Mms).then_some(point);
             for (p, opts) in cfg.predictors.iter().zip(&options) {

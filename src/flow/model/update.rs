@@ -103,6 +103,16 @@ impl UpdateBlock {
         let mask = conv_layer(&self.mask2, mask_head, Act::Identity).mul_scalar(0.25);
         (hidden, delta, Some(mask))
     }
+
+    /// The upsampling mask of a hidden state on its own (for a caller that learns only after
+    /// an update that it was the last).
+    ///
+    /// # Shapes
+    /// `[B, Ch, H, W]` → `[B, 64·9, H, W]`
+    pub fn mask(&self, hidden: Tensor<4>) -> Tensor<4> {
+        let head = conv_layer(&self.mask1, hidden, Act::Relu);
+        conv_layer(&self.mask2, head, Act::Identity).mul_scalar(0.25)
+    }
 }
 
 #[cfg(test)]
