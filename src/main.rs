@@ -15,8 +15,8 @@ use cli::data::{
     psf, simulate, unpack,
 };
 use cli::flow::{
-    BenchFlowArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs, ExportArgs, InferArgs, TrainArgs,
-    bench_flow, bench_real, detect_limits, eval, export, infer, train,
+    BenchFlowArgs, BenchLiveArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs, ExportArgs, InferArgs,
+    TrainArgs, bench_flow, bench_live, bench_real, detect_limits, eval, export, infer, train,
 };
 use cli::live::{LiveArgs, live};
 use cli::optics::{CompareArgs, OpticsCommand, compare, optics};
@@ -61,6 +61,8 @@ enum Command {
     /// Benchmark MMS, OpenCV DIS/Farneback and zero flow on real pairs, clean and through the
     /// camera: per-set and per-pair EPE, 1/3/5 px, ms per pair, and EPE-against-time plots.
     BenchReal(BenchRealArgs),
+    /// The live system's error against run time on rendered clips: flow EPE against ms per pair and tracking one frame ahead against the frames per second it keeps up with, for operating points (size, iterations, reuse, warm start, refinement) and DIS's presets
+    BenchLive(BenchLiveArgs),
     /// Note S12's detection limits through the network (Fig. S10 a-g): flow magnitude and
     /// direction error on the moving region, share detected, false-motion area.
     DetectLimits(DetectLimitsArgs),
@@ -140,6 +142,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Eval(a) => eval(a),
         Command::BenchFlow(a) => bench_flow(a),
         Command::BenchReal(a) => bench_real(a),
+        Command::BenchLive(a) => bench_live(a),
         Command::DetectLimits(a) => detect_limits(a),
         Command::Compare(a) => compare(a),
         Command::Optics(c) => optics(c),

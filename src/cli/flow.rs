@@ -65,6 +65,23 @@ pub(crate) struct BenchRealArgs {
 }
 
 #[derive(clap::Args)]
+pub(crate) struct BenchLiveArgs {
+    /// Benchmark config (JSON): clips, tracking settings, operating points, DIS presets
+    /// (experiments/bench_live.json).
+    #[arg(long)]
+    config: PathBuf,
+    /// Output folder: report.json, report.md and two charts per clip.
+    #[arg(long)]
+    out: PathBuf,
+    /// Do not run DIS.
+    #[arg(long)]
+    no_peers: bool,
+    /// Python interpreter for DIS (scripts/dis_flows.py, built in).
+    #[arg(long, default_value = "python3")]
+    python: String,
+}
+
+#[derive(clap::Args)]
 pub(crate) struct DetectLimitsArgs {
     /// Experiment config (JSON): cases, camera, iteration counts, detection rule; Note S12's
     /// six cases through the default camera when absent (experiments/s12_limits.json).
@@ -468,6 +485,33 @@ pub(crate) fn bench_real(a: BenchRealArgs) -> Result<()> {
         report.skipped.len(),
         started.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+pub(crate) fn bench_live(a: BenchLiveArgs) -> Result<()> {
+    use pins::report::bench_live::{LiveBenchConfig, charts, markdown, run};
+    let mut cfg = LiveBenchConfig::from_file(&a.config)?;
+    if a.no_peers {
+        cfg.dis.clear();
+    }
+    let rows = run(&cfg, &a.python, &|line| eprintln!("{line}"))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let command: Vec<String> = std::env::args().skip(1).collect();
+    let md = format!(
+        "# bench-live\n\n`pins {}`\n\n{}",
+        command.join(" "),
+        markdown(&rows)
+    );
+    let json = serde_json::json!({"config": cfg, "rows": rows});
+    io::write_bytes_atomic(
+        &a.out.join("report.json"),
+        serde_json::to_string_pretty(&json)?.as_bytes(),
+    )?;
+    io::write_bytes_atomic(&a.out.join("report.md"), md.as_bytes())?;
+    for (name, chart) in charts(&rows) {
+        chart.write_png(&a.out.join(name), 900, 600)?;
+    }
+    print!("{}", markdown(&rows));
     Ok(())
 }
 

@@ -10,15 +10,24 @@ use crate::error::{Error, Result};
 use crate::io::{BitDepth, read_flo, write_image};
 use crate::types::{Flow, Image};
 
+/// DIS's presets, fastest last.
+pub const PRESETS: [&str; 3] = ["medium", "fast", "ultrafast"];
+
 /// The script, as shipped with this build (piped to `python3 -`).
 pub const SCRIPT: &str = include_str!("../../scripts/dis_flows.py");
 
-/// DIS medium's flow from each frame to the next (`frames.len() − 1` flows) and the wall time
-/// per pair in ms (Python's start and the files included). `python` must import OpenCV and
-/// numpy; the error says so when it cannot.
-pub fn sequence_flows(python: &str, frames: &[Image]) -> Result<(Vec<Flow>, f64)> {
+/// DIS's flow (`preset`: `medium`, `fast` or `ultrafast`) from each frame to the next
+/// (`frames.len() − 1` flows) and DIS's own time per pair in ms (reading and writing the
+/// frames and flows excluded, as the network's time excludes them). `python` must import OpenCV and numpy; the error says so when it cannot.
+pub fn sequence_flows(python: &str, frames: &[Image], preset: &str) -> Result<(Vec<Flow>, f64)> {
     if frames.len() < 2 {
         return Err(Error::invalid("frames", "DIS needs at least two frames"));
+    }
+    if !PRESETS.contains(&preset) {
+        return Err(Error::invalid(
+            "DIS preset",
+            format!("expected one of {PRESETS:?}, got {preset:?}"),
+        ));
     }
     let dir = ScratchDir::new()?;
     let (frame_dir, flow_dir) = (dir.0.join("frames"), dir.0.join("flows"));
@@ -27,7 +36,7 @@ pub fn sequence_flows(python: &str, frames: &[Image]) -> Result<(Vec<Flow>, f64)
         write_image(&frame_dir.join(format!("{n:05}.png")), f, BitDepth::Eight)?;
     }
     let started = Instant::now();
-    crate::io::python::run_piped(
+    let out = crate::io::python::run_piped(
         python,
         SCRIPT,
         "scripts/dis_flows.py",
@@ -37,9 +46,17 @@ pub fn sequence_flows(python: &str, frames: &[Image]) -> Result<(Vec<Flow>, f64)
             frame_dir.as_os_str(),
             OsStr::new("--out"),
             flow_dir.as_os_str(),
+            OsStr::new("--preset"),
+            OsStr::new(preset),
         ],
     )?;
-    let ms = started.elapsed().as_secs_f64() * 1e3 / (frames.len() - 1) as f64;
+    let wall = started.elapsed().as_secs_f64() * 1e3 / (frames.len() - 1) as f64;
+    let ms = String::from_utf8_lossy(&out.stdout)
+        .split("DIS ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| t.parse::<f64>().ok())
+        .unwrap_or(wall);
     let flows = (0..frames.len() - 1)
         .map(|n| read_flo(&flow_dir.join(format!("{n:05}.flo"))))
         .collect::<Result<Vec<_>>>()?;
@@ -92,8 +109,10 @@ mod tests {
             img
         };
         let frames = [frame(0), frame(3)];
-        match sequence_flows("python3", &frames) {
-            Ok((flows, _)) => {
+        match sequence_flows("python3", &frames, "medium") {
+            Ok((flows, ms)) => {
+                // DIS's own time, parsed from the script's last line.
+                assert!(ms > 0.0 && ms.is_finite(), "{ms} ms");
                 assert_eq!(flows.len(), 1);
                 let f = &flows[0];
                 // The mean u over the inner frame (away from the uncovered border) is +3 px.
@@ -115,6 +134,11 @@ mod tests {
                 assert!(msg.contains("dis"), "{msg}");
             }
         }
-        assert!(sequence_flows("python3", &frames[..1]).is_err());
+        assert!(sequence_flows("python3", &frames[..1], "medium").is_err());
+        let preset = sequence_flows("python3", &frames, "slow")
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(preset.contains("slow"), "{preset}");
     }
 }

@@ -3,6 +3,7 @@
 
 pub mod array_bench;
 pub mod bench;
+pub mod bench_live;
 pub mod bench_real;
 pub mod detection_limits;
 pub mod eval_plot;

@@ -56,6 +56,28 @@ impl Truth {
         })
     }
 
+    /// The truth of every `step`-th frame (0, step, 2·step, …): what a tracker that keeps one
+    /// camera frame in `step` sees, at `fps / step`.
+    pub fn every(&self, step: usize) -> Self {
+        let step = step.max(1);
+        Self {
+            width: self.width,
+            height: self.height,
+            fps: self.fps / step as f64,
+            frames: self.frames.div_ceil(step),
+            objects: self
+                .objects
+                .iter()
+                .map(|o| TruthObject {
+                    index: o.index,
+                    radius: o.radius,
+                    centroids: o.centroids.iter().step_by(step).copied().collect(),
+                    visible: o.visible.iter().step_by(step).copied().collect(),
+                })
+                .collect(),
+        }
+    }
+
     /// Reads and checks a `truth.json`.
     pub fn read(path: &Path) -> Result<Self> {
         let t: Self = crate::io::read_json(path)?;
@@ -91,5 +113,40 @@ impl Truth {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth(frames: usize) -> Truth {
+        Truth {
+            width: 64,
+            height: 48,
+            fps: 15.0,
+            frames,
+            objects: vec![TruthObject {
+                index: 0,
+                radius: 4.0,
+                centroids: (0..frames).map(|n| [n as f64, 2.0 * n as f64]).collect(),
+                visible: (0..frames).map(|n| n % 2 == 0).collect(),
+            }],
+        }
+    }
+
+    #[test]
+    fn every_kth_frame_keeps_frames_0_k_2k() {
+        let t = truth(10).every(3);
+        assert_eq!((t.frames, t.fps), (4, 5.0));
+        let o = &t.objects[0];
+        assert_eq!(
+            o.centroids,
+            vec![[0.0, 0.0], [3.0, 6.0], [6.0, 12.0], [9.0, 18.0]]
+        );
+        assert_eq!(o.visible, vec![true, false, true, false]);
+        assert!(t.validate().is_ok());
+        assert_eq!(truth(10).every(1), truth(10));
+        assert_eq!(truth(10).every(0), truth(10));
     }
 }

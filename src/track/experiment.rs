@@ -60,7 +60,7 @@ pub struct ClipSpec {
 
 impl ClipSpec {
     /// The clip's runs: its file or inline clip loaded (paths relative to `base`), once per seed.
-    fn expand(self, base: &Path) -> Result<Vec<ClipSpec>> {
+    pub fn expand(self, base: &Path) -> Result<Vec<ClipSpec>> {
         let what = format!("clip {:?}", self.name);
         let clip = match (&self.config, &self.inline) {
             (Some(file), None) => SequenceConfig::from_file(&base.join(file))?,
@@ -342,7 +342,7 @@ pub fn clip_flows(
         }
         (FlowSource::Dis, _) => {
             let frames = camera_frames(cfg)?;
-            let (flows, ms) = crate::flow::dis::sequence_flows(DIS_PYTHON, &frames)?;
+            let (flows, ms) = crate::flow::dis::sequence_flows(DIS_PYTHON, &frames, "medium")?;
             Ok((estimated(truth, flows, &frames), Some(ms)))
         }
         (FlowSource::Mms, None) => Err(Error::invalid("flow", "MMS flow needs weights")),
@@ -353,7 +353,7 @@ pub fn clip_flows(
 pub const DIS_PYTHON: &str = "python3";
 
 /// A clip's frames through its camera, each with its own noise.
-fn camera_frames(cfg: &SequenceConfig) -> Result<Vec<crate::types::Image>> {
+pub fn camera_frames(cfg: &SequenceConfig) -> Result<Vec<crate::types::Image>> {
     let scene = &cfg.scene;
     let camera = cfg.camera()?;
     (0..scene.frames)
