@@ -224,3 +224,47 @@ fn auto_iterations_stop_early_and_never_run_more_than_asked() {
         assert!(VideoFlow::new(opts, 1.0).is_err(), "threshold {bad}");
     }
 }
+
+#[test]
+fn infer_runs_frames_as_a_video_from_the_command_line() {
+    let d = tempfile::tempdir().expect("temp dir");
+    let frames = d.path().join("frames");
+    std::fs::create_dir(&frames).expect("frames dir");
+    for (n, f) in steady(3, 48, 64, (1.0, 0.5)).iter().enumerate() {
+        pins::io::write_image(
+            &frames.join(format!("{n:03}.png")),
+            f,
+            pins::io::BitDepth::Eight,
+        )
+        .expect("frame");
+    }
+    let run = |extra: &[&str], out: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_pins"))
+            .args(["infer", "--weights", "mms-small", "--refine", "none"])
+            .arg("--frames")
+            .arg(&frames)
+            .arg("--out")
+            .arg(d.path().join(out))
+            .args(extra)
+            .output()
+            .expect("pins runs")
+    };
+    let ok = run(&["--iters", "auto", "--warm-start"], "flows");
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&ok.stdout);
+    assert_eq!(
+        stdout.lines().filter(|l| l.contains("iterations")).count(),
+        2,
+        "{stdout}"
+    );
+    assert!(d.path().join("flows/001.flo").exists());
+    let bad = run(&["--iters", "often"], "bad");
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--iters") && err.contains("auto"), "{err}");
+    assert!(!d.path().join("bad").exists(), "a refused run left output");
+}
