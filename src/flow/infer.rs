@@ -189,7 +189,7 @@ pub enum Start<'a> {
     Flow(&'a Flow),
     /// A flow on the network's grid of the padded pair (`[1, 2, H'/8, W'/8]`, 1/8-resolution
     /// pixels).
-    Grid(Tensor<4>),
+    Grid(Box<Tensor<4>>),
 }
 
 /// The last frame a network run saw, kept by a caller that runs the frames of a video in
@@ -260,7 +260,7 @@ impl Network<'_> {
                     format!("{}x{}", f.width(), f.height()),
                 ));
             }
-            Start::Grid(t) => Some(t),
+            Start::Grid(t) => Some(*t),
         };
         let model = self.model;
         let cached = last.filter(|l| l.is(img1)).map(|l| l.features);

@@ -194,7 +194,7 @@ impl VideoFlow {
         };
         let was_warm = warm.is_some();
         let start = match (warm, &coarse) {
-            (Some(grid), _) => Start::Grid(grid),
+            (Some(grid), _) => Start::Grid(Box::new(grid)),
             (None, Some(f)) => Start::Flow(f),
             (None, None) => Start::Zero,
         };
