@@ -432,6 +432,12 @@ pub struct KernelReport {
     /// Best rate on the kernels' threads, and on one.
     pub peak_gflops: f64,
     pub peak_gflops_one_thread: f64,
+    /// The best rate on the kernels' threads measured again after the operations: how much
+    /// the machine's load changed during the run.
+    pub peak_gflops_after: f64,
+    /// `/proc/loadavg`'s 1-minute load before and after the run (0 where unreadable).
+    pub load_before: f64,
+    pub load_after: f64,
     pub rows: Vec<KernelRow>,
     /// Σ ms per pair of the rows, and of each part.
     pub sum_ms: f64,
@@ -458,6 +464,7 @@ pub fn run(
         ));
     }
     let threads = rayon::current_num_threads();
+    let load_before = load();
     let mut peak = Vec::new();
     for n in PEAK_SIDES {
         for t in [threads, 1] {
@@ -503,6 +510,10 @@ pub fn run(
             other_path_ms_per_pair: other.map(|ms| ms * op.count as f64),
         });
     }
+    let peak_gflops_after = PEAK_SIDES
+        .iter()
+        .map(|&n| 2.0 * (n as f64).powi(3) / (peak_ms(n, threads, reps) * 1e6))
+        .fold(0.0, f64::max);
     let part_ms = [Part::Encoders, Part::Pair, Part::Update]
         .map(|p| {
             (
@@ -524,11 +535,22 @@ pub fn run(
         peak,
         peak_gflops,
         peak_gflops_one_thread,
+        peak_gflops_after,
+        load_before,
+        load_after: load(),
         sum_ms: rows.iter().map(|r| r.ms_per_pair).sum(),
         rows,
         part_ms,
         forward_ms,
     })
+}
+
+/// The 1-minute load average, 0 where `/proc/loadavg` cannot be read.
+fn load() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0.0)
 }
 
 /// Best time of `reps` square products of side `n` on `threads` threads, after one warm-up.
@@ -698,8 +720,15 @@ impl KernelReport {
             );
         }
         s += &format!(
-            "\nPeak: {:.1} GFLOP/s on {} threads, {:.1} on one.\n\n",
-            self.peak_gflops, self.threads, self.peak_gflops_one_thread
+            "\nPeak: {:.1} GFLOP/s on {} threads, {:.1} on one; {:.1} on {} threads again after \
+             the operations. Load average {:.2} before, {:.2} after.\n\n",
+            self.peak_gflops,
+            self.threads,
+            self.peak_gflops_one_thread,
+            self.peak_gflops_after,
+            self.threads,
+            self.load_before,
+            self.load_after
         );
         s += "| op | shape | count per pair | MFLOP per pair | ms per pair | GFLOP/s | % of gemm peak |\n";
         s += "|---|---|---|---|---|---|---|\n";
