@@ -13,7 +13,8 @@ pub(crate) struct BenchFlowArgs {
     /// mms or mms-small.
     #[arg(long, default_value = "mms-small")]
     model: String,
-    /// infer (batch 1) or train (batch 2, one AdamW step).
+    /// infer (batch 1), train (batch 2, one AdamW step), or kernels (every heavy operation of
+    /// one pair against the machine's gemm peak, a markdown table; --iters updates; cpu only).
     #[arg(long, default_value = "infer")]
     mode: String,
     #[arg(long, default_value_t = 368)]
@@ -445,6 +446,16 @@ pub(crate) fn bench_flow(a: BenchFlowArgs) -> Result<()> {
         bail!("--reps and --iters must be positive");
     }
     let device = pins::flow::device::select(&a.device)?;
+    if a.mode == "kernels" {
+        if !matches!(a.device.as_str(), "cpu" | "flex") {
+            bail!("--mode kernels times the host kernels: use --device cpu");
+        }
+        let report =
+            pins::report::kernel_bench::run(&a.model, a.height, a.width, a.iters, a.reps, &device)?;
+        println!("{}", report.markdown());
+        println!("{}", serde_json::to_string(&report)?);
+        return Ok(());
+    }
     let row = pins::report::flow_bench::run(
         &a.model, &a.mode, a.height, a.width, a.iters, a.reps, &device,
     )?;

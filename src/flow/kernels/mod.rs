@@ -15,6 +15,7 @@
 //! | [`upsample`] | convex 8× upsampling and its gradients |
 //! | [`vexp`] | a vectorisable `exp` |
 //! | [`par`] | the thread pool: `join` and chunked element-wise maps |
+//! | [`peak`] | one square matrix product: the machine's rate to measure the layers against |
 
 pub mod act;
 pub mod conv;
@@ -23,6 +24,7 @@ pub mod geometry;
 pub mod lookup;
 pub mod norm;
 pub mod par;
+pub mod peak;
 pub mod shifted;
 pub mod unfold;
 pub mod upsample;
