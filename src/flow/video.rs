@@ -7,8 +7,8 @@
 //!   to the last bit. A frame that is not the previous pair's second (another size, a skipped
 //!   frame, other pixels) is encoded again.
 //! - **Warm start** (RAFT on video): the previous pair's flow, carried forward along itself
-//!   ([`super::warm`]) and scaled by the ratio of the pairs' time gaps, starts the updates
-//!   instead of zero or the coarse start.
+//!   ([`super::warm`], its background settled on one motion first) and scaled by the ratio of
+//!   the pairs' time gaps, starts the updates instead of zero or the coarse start.
 //! - **Auto iterations**: the updates stop once an update's mean length falls below
 //!   [`AUTO_STOP_PX`], at most the asked count.
 
@@ -17,7 +17,7 @@ use burn::prelude::*;
 use super::infer::{LastFrame, Network, Predictor, Start};
 use super::resample::resize_flow;
 use super::scale::check_scale;
-use super::warm::forward_warp;
+use super::warm::{forward_warp, settle_background};
 use crate::error::{Error, Result};
 use crate::imaging::resize::{downscale, resize_to, scaled_size};
 use crate::types::{Flow, Image};
@@ -221,7 +221,7 @@ fn warm_grid(flow8: &Tensor<4>, ratio: f32, device: &Device) -> Result<Tensor<4>
         .into_data()
         .try_to_vec::<f32>()
         .map_err(|e| Error::invalid("previous flow", format!("{e:?}")))?;
-    let warped = forward_warp(&data, h, w, ratio);
+    let warped = forward_warp(&settle_background(&data, h, w), h, w, ratio);
     Ok(Tensor::<4>::from_data(
         TensorData::new(warped, [1, 2, h, w]),
         device,

@@ -4,6 +4,12 @@
 //! where several land on one cell the longest motion wins (a mover passes in front of what it
 //! moves over); cells that nothing lands on take the flow of the nearest cell that something
 //! did (RAFT's `forward_interpolate`, which fills by nearest-neighbour interpolation).
+//!
+//! Before it is carried, the background is made one motion ([`settle_background`]): the cells
+//! whose vector lies within the flow's own noise of its median vector take the median. An
+//! estimate's noise differs from pair to pair; carried forward unchanged it would be added to
+//! the next pair's and grow along the video, while a mover's motion and the background's
+//! common motion (a still or panning camera) carry over.
 
 use std::collections::VecDeque;
 
@@ -58,9 +64,85 @@ pub fn forward_warp(flow: &[f32], h: usize, w: usize, ratio: f32) -> Vec<f32> {
     out
 }
 
+/// `flow` (`[2, H, W]`) with every vector within the noise of the median vector replaced by
+/// it: the noise is a robust spread of the vectors' distances d to the median vector
+/// (median(d) + 3 · 1.4826 · MAD(d)); vectors farther away (movers) are kept.
+pub fn settle_background(flow: &[f32], h: usize, w: usize) -> Vec<f32> {
+    let n = h * w;
+    assert_eq!(
+        flow.len(),
+        2 * n,
+        "settle_background: flow is not [2, {h}, {w}]"
+    );
+    let (u, v) = flow.split_at(n);
+    let (Some(mu), Some(mv)) = (median(u.to_vec()), median(v.to_vec())) else {
+        return flow.to_vec();
+    };
+    let dist: Vec<f32> = u
+        .iter()
+        .zip(v)
+        .map(|(a, b)| (a - mu).hypot(b - mv))
+        .collect();
+    let Some(md) = median(dist.clone()) else {
+        return flow.to_vec();
+    };
+    let mad = median(dist.iter().map(|d| (d - md).abs()).collect()).unwrap_or(0.0);
+    let noise = md + 3.0 * 1.4826 * mad;
+    let mut out = flow.to_vec();
+    for (i, d) in dist.iter().enumerate() {
+        if *d <= noise {
+            out[i] = mu;
+            out[n + i] = mv;
+        }
+    }
+    out
+}
+
+/// The median of the finite values (the upper one of an even count); `None` when there are
+/// none.
+fn median(mut v: Vec<f32>) -> Option<f32> {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    let (_, m, _) = v.select_nth_unstable_by(mid, f32::total_cmp);
+    Some(*m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_background_settles_on_its_median_and_movers_stay() {
+        // A still background with ±0.3 px noise, a 2×2 mover at 4 px.
+        let (h, w) = (8, 8);
+        let mut f = vec![0.0f32; 2 * h * w];
+        for i in 0..h * w {
+            let s = 0.3 * (i as f32 * 1.7).sin();
+            f[i] = s;
+            f[h * w + i] = 0.3 * (i as f32 * 0.9 + 1.0).cos();
+        }
+        for (y, x) in [(3, 3), (3, 4), (4, 3), (4, 4)] {
+            f[y * w + x] = 4.0;
+            f[h * w + y * w + x] = 1.0;
+        }
+        let out = settle_background(&f, h, w);
+        let (mu, mv) = (out[0], out[h * w]);
+        assert!(mu.abs() <= 0.3 && mv.abs() <= 0.3, "median ({mu}, {mv})");
+        for i in 0..h * w {
+            let mover = [(3, 3), (3, 4), (4, 3), (4, 4)].contains(&(i / w, i % w));
+            if mover {
+                assert_eq!((out[i], out[h * w + i]), (4.0, 1.0));
+            } else {
+                assert_eq!((out[i], out[h * w + i]), (mu, mv), "cell {i}");
+            }
+        }
+        // A uniform pan stays the pan.
+        let pan: Vec<f32> = [vec![2.5; 16], vec![-1.0; 16]].concat();
+        assert_eq!(settle_background(&pan, 4, 4), pan);
+    }
 
     fn uniform(h: usize, w: usize, u: f32, v: f32) -> Vec<f32> {
         let mut f = vec![u; h * w];
