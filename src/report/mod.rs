@@ -7,5 +7,6 @@ pub mod bench_real;
 pub mod detection_limits;
 pub mod eval_plot;
 pub mod flow_bench;
+pub mod refine_bench;
 pub mod timing;
 pub mod track_plot;
