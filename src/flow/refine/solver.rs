@@ -193,63 +193,118 @@ impl Coefs {
             .zip(c1.par_chunks_mut(FIELDS * m))
             .enumerate()
             .with_min_len(ROWS)
-            .for_each(|(y, (even, odd))| {
-                let horizontal = &e.horizontal[y * (w + 1)..(y + 1) * (w + 1)];
-                let (up, down) = (
-                    &e.vertical[y * w..(y + 1) * w],
-                    &e.vertical[(y + 1) * w..(y + 2) * w],
-                );
-                for x in 0..w {
-                    let i = y * w + x;
-                    let (x1, y1) = (du[i], dv[i]);
-                    // Robust weights of the brightness and the gradient constancy terms.
-                    let r = t.iz[i] + t.ix[i] * x1 + t.iy[i] * y1;
-                    let wd = k.delta * t.n1[i] / (t.n1[i] * r * r + EPS * EPS).sqrt();
-                    let rx = t.ixz[i] + t.ixx[i] * x1 + t.ixy[i] * y1;
-                    let ry = t.iyz[i] + t.ixy[i] * x1 + t.iyy[i] * y1;
-                    let wg = k.gamma / (t.nx[i] * rx * rx + t.ny[i] * ry * ry + EPS * EPS).sqrt();
-                    let (wx, wy) = (wg * t.nx[i], wg * t.ny[i]);
-                    let (ix, iy, ixx, ixy, iyy) = (t.ix[i], t.iy[i], t.ixx[i], t.ixy[i], t.iyy[i]);
-                    let a11 = wd * ix * ix + wx * ixx * ixx + wy * ixy * ixy;
-                    let a12 = wd * ix * iy + wx * ixx * ixy + wy * ixy * iyy;
-                    let a22 = wd * iy * iy + wx * ixy * ixy + wy * iyy * iyy;
-                    let b1 = -(wd * ix * t.iz[i] + wx * ixx * t.ixz[i] + wy * ixy * t.iyz[i]);
-                    let b2 = -(wd * iy * t.iz[i] + wx * ixy * t.ixz[i] + wy * iyy * t.iyz[i]);
-                    // Neighbours left, right, above, below; one outside the frame has weight
-                    // zero (and stands at the pixel itself, so its difference is zero too).
-                    let nb = [
-                        (horizontal[x], if x > 0 { i - 1 } else { i }),
-                        (horizontal[x + 1], if x + 1 < w { i + 1 } else { i }),
-                        (up[x], if y > 0 { i - w } else { i }),
-                        (down[x], if i + w < u.len() { i + w } else { i }),
-                    ];
-                    let (mut sum, mut su, mut sv) = (0.0f32, 0.0f32, 0.0f32);
-                    for (kj, j) in nb {
-                        sum += kj;
-                        su += kj * (u[j] - u[i]);
-                        sv += kj * (v[j] - v[i]);
+            .for_each_init(
+                || vec![0.0f32; FIELDS * w + 2 * (w + 2)],
+                |buf, (y, (colour0, colour1))| {
+                    let (fields, pads) = buf.split_at_mut(FIELDS * w);
+                    let (pu, pv) = pads.split_at_mut(w + 2);
+                    equations_row(t, u, v, du, dv, e, k, y, fields, pu, pv);
+                    // Into the split layout: colour c's pixels in row y are x = 2k + (c + y) % 2.
+                    for (c, block) in [(0, colour0), (1, colour1)] {
+                        let o = (c + y) % 2;
+                        for f in 0..FIELDS {
+                            let from = fields[f * w + o..(f + 1) * w].iter().step_by(2);
+                            for (to, from) in block[f * m..(f + 1) * m].iter_mut().zip(from) {
+                                *to = *from;
+                            }
+                        }
                     }
-                    let block = if (x + y) % 2 == 0 {
-                        &mut *even
-                    } else {
-                        &mut *odd
-                    };
-                    let at = x / 2;
-                    for (field, value) in [
-                        (C1, b1 + su),
-                        (C2, b2 + sv),
-                        (A12, a12),
-                        (D1, a11 + sum),
-                        (D2, a22 + sum),
-                        (KL, nb[0].0),
-                        (KR, nb[1].0),
-                        (KU, nb[2].0),
-                        (KD, nb[3].0),
-                    ] {
-                        block[field * m + at] = value;
-                    }
-                }
-            });
+                },
+            );
+    }
+}
+
+/// Row `y` of `a`, rows of `w` values.
+fn row(a: &[f32], y: usize, w: usize) -> &[f32] {
+    &a[y * w..(y + 1) * w]
+}
+
+/// The `N` consecutive planes of `w` values in `out`.
+fn planes<const N: usize>(out: &mut [f32], w: usize) -> [&mut [f32]; N] {
+    let mut rest = out;
+    std::array::from_fn(|_| {
+        let (plane, tail) = std::mem::take(&mut rest).split_at_mut(w);
+        rest = tail;
+        plane
+    })
+}
+
+/// Row `y`'s equations in the plain layout: `out` gets the `FIELDS` planes of `w` values; `pu`,
+/// `pv` (`w + 2` each) are scratch. Every slice is cut to the row's length first, so the loop
+/// runs without bounds checks and vectorises (square roots and divisions included).
+#[allow(clippy::too_many_arguments)]
+fn equations_row(
+    t: &Terms,
+    u: &[f32],
+    v: &[f32],
+    du: &[f32],
+    dv: &[f32],
+    e: &Edges,
+    k: &Weights,
+    y: usize,
+    out: &mut [f32],
+    pu: &mut [f32],
+    pv: &mut [f32],
+) {
+    let (h, w) = (e.h, e.w);
+    let (ix, iy, iz) = (row(&t.ix, y, w), row(&t.iy, y, w), row(&t.iz, y, w));
+    let (ixx, ixy, iyy) = (row(&t.ixx, y, w), row(&t.ixy, y, w), row(&t.iyy, y, w));
+    let (ixz, iyz) = (row(&t.ixz, y, w), row(&t.iyz, y, w));
+    let (n1, nx, ny) = (row(&t.n1, y, w), row(&t.nx, y, w), row(&t.ny, y, w));
+    let (ur, vr, dur, dvr) = (row(u, y, w), row(v, y, w), row(du, y, w), row(dv, y, w));
+    // The rows above and below, clamped: outside the frame the edge weight is zero and the
+    // neighbour stands at the pixel itself, so its difference is zero too.
+    let (uu, ud) = (
+        row(u, y.saturating_sub(1), w),
+        row(u, (y + 1).min(h - 1), w),
+    );
+    let (vu, vd) = (
+        row(v, y.saturating_sub(1), w),
+        row(v, (y + 1).min(h - 1), w),
+    );
+    // The row with its ends repeated: the neighbours left and right of x are at x and x + 2.
+    for (p, r) in [(&mut *pu, ur), (&mut *pv, vr)] {
+        p[1..w + 1].copy_from_slice(r);
+        p[0] = r[0];
+        p[w + 1] = r[w - 1];
+    }
+    let (ul, urt, vl, vrt) = (&pu[..w], &pu[2..w + 2], &pv[..w], &pv[2..w + 2]);
+    let horizontal = &e.horizontal[y * (w + 1)..(y + 1) * (w + 1)];
+    let (kl, kr) = (&horizontal[..w], &horizontal[1..w + 1]);
+    let (ku, kd) = (row(&e.vertical, y, w), row(&e.vertical, y + 1, w));
+    let [c1, c2, a12o, d1, d2, okl, okr, oku, okd] = planes::<FIELDS>(out, w);
+    for x in 0..w {
+        let (x1, y1) = (dur[x], dvr[x]);
+        // Robust weights of the brightness and the gradient constancy terms.
+        let r = iz[x] + ix[x] * x1 + iy[x] * y1;
+        let wd = k.delta * n1[x] / (n1[x] * r * r + EPS * EPS).sqrt();
+        let rx = ixz[x] + ixx[x] * x1 + ixy[x] * y1;
+        let ry = iyz[x] + ixy[x] * x1 + iyy[x] * y1;
+        let wg = k.gamma / (nx[x] * rx * rx + ny[x] * ry * ry + EPS * EPS).sqrt();
+        let (wx, wy) = (wg * nx[x], wg * ny[x]);
+        let (gx, gy, gxx, gxy, gyy) = (ix[x], iy[x], ixx[x], ixy[x], iyy[x]);
+        let a11 = wd * gx * gx + wx * gxx * gxx + wy * gxy * gxy;
+        let a12 = wd * gx * gy + wx * gxx * gxy + wy * gxy * gyy;
+        let a22 = wd * gy * gy + wx * gxy * gxy + wy * gyy * gyy;
+        let b1 = -(wd * gx * iz[x] + wx * gxx * ixz[x] + wy * gxy * iyz[x]);
+        let b2 = -(wd * gy * iz[x] + wx * gxy * ixz[x] + wy * gyy * iyz[x]);
+        // The smoothness term's fixed part Σ k_j·(u_j − u) (left, right, up, down) and its
+        // diagonal Σ k_j.
+        let (a, b) = (ur[x], vr[x]);
+        let sum = kl[x] + kr[x] + ku[x] + kd[x];
+        let su =
+            kl[x] * (ul[x] - a) + kr[x] * (urt[x] - a) + ku[x] * (uu[x] - a) + kd[x] * (ud[x] - a);
+        let sv =
+            kl[x] * (vl[x] - b) + kr[x] * (vrt[x] - b) + ku[x] * (vu[x] - b) + kd[x] * (vd[x] - b);
+        c1[x] = b1 + su;
+        c2[x] = b2 + sv;
+        a12o[x] = a12;
+        d1[x] = a11 + sum;
+        d2[x] = a22 + sum;
+        okl[x] = kl[x];
+        okr[x] = kr[x];
+        oku[x] = ku[x];
+        okd[x] = kd[x];
     }
 }
 
