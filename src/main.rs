@@ -56,7 +56,8 @@ enum Command {
     Infer(InferArgs),
     /// Evaluate weights on a dataset: EPE, AE, 1/3/5 px and ms per pair for several iteration counts.
     Eval(EvalArgs),
-    /// Time MMS inference or one training step (random weights) and print a JSON line.
+    /// Time MMS inference or one training step (random weights), or the variational
+    /// refinement alone, and print a JSON line.
     BenchFlow(BenchFlowArgs),
     /// Benchmark MMS, OpenCV DIS/Farneback and zero flow on real pairs, clean and through the
     /// camera: per-set and per-pair EPE, 1/3/5 px, ms per pair, and EPE-against-time plots.

@@ -13,8 +13,10 @@ pub(crate) struct BenchFlowArgs {
     /// mms or mms-small.
     #[arg(long, default_value = "mms-small")]
     model: String,
-    /// infer (batch 1), train (batch 2, one AdamW step), or kernels (every heavy operation of
-    /// one pair against the machine's gemm peak, a markdown table; --iters updates; cpu only).
+    /// infer (batch 1), train (batch 2, one AdamW step), kernels (every heavy operation of
+    /// one pair against the machine's gemm peak, a markdown table; --iters updates; cpu only)
+    /// or refine (the variational refinement alone, on a warped texture pair; --model, --iters
+    /// and --device unused).
     #[arg(long, default_value = "infer")]
     mode: String,
     #[arg(long, default_value_t = 368)]
@@ -28,6 +30,13 @@ pub(crate) struct BenchFlowArgs {
     /// Device: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
+    /// --mode refine: the settings, `variational` (the defaults) or a .json file of them.
+    #[arg(long, default_value = "variational")]
+    refine: String,
+    /// --mode refine: also write the pair there (frame1.png, frame2.png, start.flo,
+    /// truth.flo), for timing another refinement on the same frames.
+    #[arg(long)]
+    pair_out: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -444,6 +453,20 @@ pub(crate) fn eval(a: EvalArgs) -> Result<()> {
 pub(crate) fn bench_flow(a: BenchFlowArgs) -> Result<()> {
     if a.reps == 0 || a.iters == 0 {
         bail!("--reps and --iters must be positive");
+    }
+    if a.mode == "refine" {
+        let Some(cfg) = pins::flow::refine::Refine::parse(&a.refine)?.config() else {
+            bail!("bench-flow --mode refine needs a refinement, not --refine none");
+        };
+        let row = pins::report::refine_bench::run(
+            a.height,
+            a.width,
+            a.reps,
+            &cfg,
+            a.pair_out.as_deref(),
+        )?;
+        println!("{}", serde_json::to_string(&row)?);
+        return Ok(());
     }
     let device = pins::flow::device::select(&a.device)?;
     if a.mode == "kernels" {

@@ -9,5 +9,6 @@ pub mod detection_limits;
 pub mod eval_plot;
 pub mod flow_bench;
 pub mod kernel_bench;
+pub mod refine_bench;
 pub mod timing;
 pub mod track_plot;

@@ -3,6 +3,8 @@
 //! every pixel gets the coefficients of its two constancy assumptions in the unknown increment
 //! (du, dv).
 
+use rayon::prelude::*;
+
 /// Per-pixel coefficients at one scale, each `[H·W]`, intensities in 8-bit units.
 ///
 /// Brightness constancy, linearised: `Iz + Ix·du + Iy·dv ≈ 0`; gradient constancy:
@@ -77,63 +79,69 @@ pub fn terms(i0: &[f32], i1: &[f32], u: &[f32], v: &[f32], h: usize, w: usize) -
 }
 
 /// `img` sampled bilinearly at `(x + u, y + v)` (borders clamped), and whether that point lies
-/// inside the frame.
+/// inside the frame; rows in parallel.
 pub fn warp(img: &[f32], u: &[f32], v: &[f32], h: usize, w: usize) -> (Vec<f32>, Vec<bool>) {
     let mut out = vec![0.0f32; h * w];
     let mut inside = vec![false; h * w];
     let (wm, hm) = ((w - 1) as f32, (h - 1) as f32);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let sx = x as f32 + u[i];
-            let sy = y as f32 + v[i];
-            inside[i] = sx.is_finite()
-                && sy.is_finite()
-                && (0.0..=wm).contains(&sx)
-                && (0.0..=hm).contains(&sy);
-            let (cx, cy) = (sx.clamp(0.0, wm), sy.clamp(0.0, hm));
-            let (cx, cy) = if cx.is_finite() && cy.is_finite() {
-                (cx, cy)
-            } else {
-                (x as f32, y as f32)
-            };
-            let (x0, y0) = (cx.floor() as usize, cy.floor() as usize);
-            let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-            let (fx, fy) = (cx - x0 as f32, cy - y0 as f32);
-            let top = img[y0 * w + x0] * (1.0 - fx) + img[y0 * w + x1] * fx;
-            let bottom = img[y1 * w + x0] * (1.0 - fx) + img[y1 * w + x1] * fx;
-            out[i] = top * (1.0 - fy) + bottom * fy;
-        }
-    }
+    out.par_chunks_mut(w)
+        .zip(inside.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (out, inside))| {
+            for x in 0..w {
+                let i = y * w + x;
+                let sx = x as f32 + u[i];
+                let sy = y as f32 + v[i];
+                inside[x] = sx.is_finite()
+                    && sy.is_finite()
+                    && (0.0..=wm).contains(&sx)
+                    && (0.0..=hm).contains(&sy);
+                let (cx, cy) = (sx.clamp(0.0, wm), sy.clamp(0.0, hm));
+                let (cx, cy) = if cx.is_finite() && cy.is_finite() {
+                    (cx, cy)
+                } else {
+                    (x as f32, y as f32)
+                };
+                let (x0, y0) = (cx.floor() as usize, cy.floor() as usize);
+                let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+                let (fx, fy) = (cx - x0 as f32, cy - y0 as f32);
+                let top = img[y0 * w + x0] * (1.0 - fx) + img[y0 * w + x1] * fx;
+                let bottom = img[y1 * w + x0] * (1.0 - fx) + img[y1 * w + x1] * fx;
+                out[x] = top * (1.0 - fy) + bottom * fy;
+            }
+        });
     (out, inside)
 }
 
-/// The five-point derivative (1, −8, 0, 8, −1) / 12 along x, borders replicated.
+/// The five-point derivative (1, −8, 0, 8, −1) / 12 along x, borders replicated; rows in
+/// parallel.
 pub fn deriv_x(p: &[f32], h: usize, w: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; h * w];
     let at = |x: isize| x.clamp(0, w as isize - 1) as usize;
-    for y in 0..h {
+    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
         let row = &p[y * w..(y + 1) * w];
         for x in 0..w as isize {
-            out[y * w + x as usize] =
-                (row[at(x - 2)] - 8.0 * row[at(x - 1)] + 8.0 * row[at(x + 1)] - row[at(x + 2)])
-                    / 12.0;
+            out[x as usize] = (row[at(x - 2)] - 8.0 * row[at(x - 1)] + 8.0 * row[at(x + 1)]
+                - row[at(x + 2)])
+                / 12.0;
         }
-    }
+    });
     out
 }
 
-/// The five-point derivative along y, borders replicated.
+/// The five-point derivative along y, borders replicated; rows in parallel.
 pub fn deriv_y(p: &[f32], h: usize, w: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; h * w];
     let at = |y: isize| y.clamp(0, h as isize - 1) as usize;
-    for y in 0..h as isize {
+    out.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let y = y as isize;
         let (a, b, c, d) = (at(y - 2), at(y - 1), at(y + 1), at(y + 2));
+        let row = |r: usize| &p[r * w..(r + 1) * w];
+        let (a, b, c, d) = (row(a), row(b), row(c), row(d));
         for x in 0..w {
-            out[y as usize * w + x] =
-                (p[a * w + x] - 8.0 * p[b * w + x] + 8.0 * p[c * w + x] - p[d * w + x]) / 12.0;
+            out[x] = (a[x] - 8.0 * b[x] + 8.0 * c[x] - d[x]) / 12.0;
         }
-    }
+    });
     out
 }
 

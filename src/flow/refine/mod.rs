@@ -4,6 +4,8 @@
 //! smoothness term, which recovers the sub-pixel accuracy a 1/8-resolution estimate lacks.
 
 pub mod linearise;
+#[cfg(test)]
+mod reference;
 pub mod solver;
 
 use serde::{Deserialize, Serialize};
@@ -189,14 +191,19 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
         omega: cfg.omega,
     };
     let mut out = flow.clone();
+    // The frames' luma once, downscaled per scale (both steps are linear, so the order only
+    // changes float rounding).
+    let (g1, g2) = (grey255(img1)?, grey255(img2)?);
     for &s in &cfg.scales {
+        let scaled;
         let (a, b) = if s == 1 {
-            (img1.clone(), img2.clone())
+            (&g1, &g2)
         } else {
-            (
-                downscale(img1, 1.0 / s as f64)?,
-                downscale(img2, 1.0 / s as f64)?,
-            )
+            scaled = (
+                downscale(&g1, 1.0 / s as f64)?,
+                downscale(&g2, 1.0 / s as f64)?,
+            );
+            (&scaled.0, &scaled.1)
         };
         let (_, sh, sw) = a.shape();
         if sh < 3 || sw < 3 {
@@ -204,10 +211,10 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
         }
         // The flow area-averaged as the frames are, its vectors scaled by the size ratio.
         let start = resize_flow(&out, sh, sw)?;
-        let (i0, i1) = (grey255(&a), grey255(&b));
+        let (i0, i1) = (a.plane(0), b.plane(0));
         let mut u = start.u().to_vec();
         let mut v = start.v().to_vec();
-        let terms = linearise::terms(&i0, &i1, &u, &v, sh, sw);
+        let terms = linearise::terms(i0, i1, &u, &v, sh, sw);
         solver::solve(&terms, &mut u, &mut v, sh, sw, &k);
         if (sh, sw) == (h, w) {
             let mut data = u;
@@ -230,16 +237,18 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
     Ok(out)
 }
 
-/// The luma (Rec. 601) of `img` in 8-bit units; a grey image is its own channel.
-fn grey255(img: &Image) -> Vec<f32> {
+/// The luma (Rec. 601) of `img` in 8-bit units, one plane; a grey image is its own channel.
+fn grey255(img: &Image) -> Result<Image> {
     let (c, h, w) = img.shape();
-    if c < 3 {
-        return img.plane(0).iter().map(|x| 255.0 * x).collect();
-    }
-    let (r, g, b) = (img.plane(0), img.plane(1), img.plane(2));
-    (0..h * w)
-        .map(|i| 255.0 * (0.299 * r[i] + 0.587 * g[i] + 0.114 * b[i]))
-        .collect()
+    let data = if c < 3 {
+        img.plane(0).iter().map(|x| 255.0 * x).collect()
+    } else {
+        let (r, g, b) = (img.plane(0), img.plane(1), img.plane(2));
+        (0..h * w)
+            .map(|i| 255.0 * (0.299 * r[i] + 0.587 * g[i] + 0.114 * b[i]))
+            .collect()
+    };
+    Image::from_vec(1, h, w, data)
 }
 
 #[cfg(test)]
