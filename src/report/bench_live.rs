@@ -144,7 +144,8 @@ pub struct LiveRow {
     /// processed frame ahead); NaN where nothing was scored.
     pub rmse1_every_frame: f64,
     pub rmse1_live: f64,
-    /// Share of the objects' in-view frames covered by a track, at the processed rate.
+    /// Share of the objects' in-view frames covered by a track, at the processed rate (NaN, and
+    /// no ID switches, where fewer than three frames are kept).
     pub recall_live: f64,
     pub id_switches_live: usize,
 }
@@ -233,18 +234,11 @@ impl Base<'_> {
         let stride = ((ms + track_ms) * self.fps / 1e3).ceil().max(1.0) as usize;
         let kept: Vec<Image> = self.frames.iter().step_by(stride).cloned().collect();
         let truth = self.truth.every(stride);
+        // Fewer than three kept frames give no track to score: the live columns stay empty.
         let report = if stride == 1 {
-            evaluate(&tracks, self.truth)?
+            Some(evaluate(&tracks, self.truth)?)
         } else if kept.len() < 3 {
-            return Err(Error::invalid(
-                "clip",
-                format!(
-                    "{clip}: {method} keeps one frame in {stride}, {} of {}: too few to track; \
-                     give a longer clip",
-                    kept.len(),
-                    self.frames.len()
-                ),
-            ));
+            None
         } else {
             let (flows, _) = estimate(&kept)?;
             let live = ClipData {
@@ -252,7 +246,7 @@ impl Base<'_> {
                 flows,
                 frames: Some(kept.iter().map(GreyFrame::new).collect()),
             };
-            evaluate(&track_clip(&live, &opts)?, &truth)?
+            Some(evaluate(&track_clip(&live, &opts)?, &truth)?)
         };
         Ok(LiveRow {
             clip: clip.to_string(),
@@ -265,9 +259,12 @@ impl Base<'_> {
             epe: all.scores().epe,
             epe_moving: moving.scores().epe,
             rmse1_every_frame,
-            rmse1_live: one_ahead(&report),
-            recall_live: report.coverage.as_ref().map_or(f64::NAN, |c| c.recall),
-            id_switches_live: report.id_switches,
+            rmse1_live: report.as_ref().map_or(f64::NAN, one_ahead),
+            recall_live: report
+                .as_ref()
+                .and_then(|r| r.coverage.as_ref())
+                .map_or(f64::NAN, |c| c.recall),
+            id_switches_live: report.as_ref().map_or(0, |r| r.id_switches),
         })
     }
 }
