@@ -52,7 +52,7 @@ pub(crate) struct LiveArgs {
     #[arg(long, default_value = "cpu")]
     device: String,
     /// MMS refinement iterations (flow.iters): a count, or auto (at most the weights' own,
-    /// stopping once the flow settles); default: the weights' own.
+    /// stopping once the flow settles). Default: the config's with --config, else auto.
     #[arg(long)]
     iters: Option<pins::flow::iters::Iters>,
     /// Start each pair's MMS from the previous pair's flow, carried forward (flow.warm_start).
@@ -281,14 +281,20 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
 pub(crate) const LIVE_HORIZONS: [usize; 3] = [1, 5, 15];
 
 /// The tracking settings: the config file (or the estimated profile's defaults, with
-/// `LIVE_HORIZONS`) and the flags' overrides.
+/// `LIVE_HORIZONS`, `auto` iterations) and the flags' overrides.
 fn settings(a: &LiveArgs) -> Result<TrackConfig> {
     let cfg = match &a.config {
         Some(p) => TrackConfig::from_file(p)?,
-        None => TrackConfig {
-            horizons: LIVE_HORIZONS.to_vec(),
-            ..TrackConfig::default()
-        },
+        None => {
+            let mut cfg = TrackConfig {
+                horizons: LIVE_HORIZONS.to_vec(),
+                ..TrackConfig::default()
+            };
+            // At most the weights' own updates, stopping once the flow settles: on the
+            // bench-live clips the same EPE as all twelve in 37 % of their time.
+            cfg.flow.iters = Some(pins::flow::iters::Iters::Auto);
+            cfg
+        }
     };
     let flags = crate::cli::track::Overrides {
         profile: a.profile,

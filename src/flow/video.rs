@@ -221,7 +221,8 @@ fn warm_grid(flow8: &Tensor<4>, ratio: f32, device: &Device) -> Result<Tensor<4>
         .into_data()
         .try_to_vec::<f32>()
         .map_err(|e| Error::invalid("previous flow", format!("{e:?}")))?;
-    let warped = forward_warp(&settle_background(&data, h, w), h, w, ratio);
+    let (settled, background) = settle_background(&data, h, w);
+    let warped = forward_warp(&settled, h, w, ratio, background);
     Ok(Tensor::<4>::from_data(
         TensorData::new(warped, [1, 2, h, w]),
         device,

@@ -2,8 +2,10 @@
 //! the next pair's updates. Each cell of the network's grid moves by its own flow (constant
 //! velocity, scaled by the ratio of the two pairs' time gaps) and lands on the nearest cell;
 //! where several land on one cell the longest motion wins (a mover passes in front of what it
-//! moves over); cells that nothing lands on take the flow of the nearest cell that something
-//! did (RAFT's `forward_interpolate`, which fills by nearest-neighbour interpolation).
+//! moves over); cells that nothing lands on (background a mover uncovers) take the background's
+//! motion. (RAFT's `forward_interpolate` fills them from the nearest landed vector instead; on
+//! a textureless background the network then never corrects a mover's motion left in its trail,
+//! and the trail grows from pair to pair.)
 //!
 //! Before it is carried, the background is made one motion ([`settle_background`]): the cells
 //! whose vector lies within the flow's own noise of its median vector take the median. An
@@ -11,13 +13,10 @@
 //! the next pair's and grow along the video, while a mover's motion and the background's
 //! common motion (a still or panning camera) carry over.
 
-use std::collections::VecDeque;
-
 /// The flow `flow` (`[2, H, W]` row-major, grid pixels) forward-warped by `ratio` × itself:
 /// the flow expected one pair later. A cell that receives several vectors keeps the longest;
-/// cells that receive none take the nearest filled cell's (breadth-first, 4-connected); where nothing
-/// lands at all (every vector leaves the grid), zero.
-pub fn forward_warp(flow: &[f32], h: usize, w: usize, ratio: f32) -> Vec<f32> {
+/// cells that receive none take `ratio` × `hole` (the background's motion).
+pub fn forward_warp(flow: &[f32], h: usize, w: usize, ratio: f32, hole: (f32, f32)) -> Vec<f32> {
     let n = h * w;
     assert_eq!(flow.len(), 2 * n, "forward_warp: flow is not [2, {h}, {w}]");
     let mut out = vec![0.0f32; 2 * n];
@@ -40,34 +39,20 @@ pub fn forward_warp(flow: &[f32], h: usize, w: usize, ratio: f32) -> Vec<f32> {
             }
         }
     }
-    let mut queue = VecDeque::new();
-    let mut filled: Vec<bool> = landed.iter().map(|l| l.is_finite()).collect();
-    queue.extend((0..n).filter(|&t| filled[t]));
-    // Holes take their nearest filled neighbour's vector, in order of distance.
-    while let Some(t) = queue.pop_front() {
-        let (y, x) = (t / w, t % w);
-        let neighbours = [
-            (y > 0).then(|| t - w),
-            (y + 1 < h).then(|| t + w),
-            (x > 0).then(|| t - 1),
-            (x + 1 < w).then(|| t + 1),
-        ];
-        for s in neighbours.into_iter().flatten() {
-            if !filled[s] {
-                filled[s] = true;
-                out[s] = out[t];
-                out[n + s] = out[n + t];
-                queue.push_back(s);
-            }
+    for t in 0..n {
+        if landed[t] == f32::NEG_INFINITY {
+            out[t] = hole.0 * ratio;
+            out[n + t] = hole.1 * ratio;
         }
     }
     out
 }
 
 /// `flow` (`[2, H, W]`) with every vector within the noise of the median vector replaced by
-/// it: the noise is a robust spread of the vectors' distances d to the median vector
-/// (median(d) + 3 · 1.4826 · MAD(d)); vectors farther away (movers) are kept.
-pub fn settle_background(flow: &[f32], h: usize, w: usize) -> Vec<f32> {
+/// it, and the median vector (the background's motion): the noise is a robust spread of the
+/// vectors' distances d to the median vector (median(d) + 3 · 1.4826 · MAD(d)); vectors
+/// farther away (movers) are kept.
+pub fn settle_background(flow: &[f32], h: usize, w: usize) -> (Vec<f32>, (f32, f32)) {
     let n = h * w;
     assert_eq!(
         flow.len(),
@@ -76,7 +61,7 @@ pub fn settle_background(flow: &[f32], h: usize, w: usize) -> Vec<f32> {
     );
     let (u, v) = flow.split_at(n);
     let (Some(mu), Some(mv)) = (median(u.to_vec()), median(v.to_vec())) else {
-        return flow.to_vec();
+        return (flow.to_vec(), (0.0, 0.0));
     };
     let dist: Vec<f32> = u
         .iter()
@@ -84,7 +69,7 @@ pub fn settle_background(flow: &[f32], h: usize, w: usize) -> Vec<f32> {
         .map(|(a, b)| (a - mu).hypot(b - mv))
         .collect();
     let Some(md) = median(dist.clone()) else {
-        return flow.to_vec();
+        return (flow.to_vec(), (mu, mv));
     };
     let mad = median(dist.iter().map(|d| (d - md).abs()).collect()).unwrap_or(0.0);
     let noise = md + 3.0 * 1.4826 * mad;
@@ -95,7 +80,7 @@ pub fn settle_background(flow: &[f32], h: usize, w: usize) -> Vec<f32> {
             out[n + i] = mv;
         }
     }
-    out
+    (out, (mu, mv))
 }
 
 /// The median of the finite values (the upper one of an even count); `None` when there are
@@ -128,8 +113,7 @@ mod tests {
             f[y * w + x] = 4.0;
             f[h * w + y * w + x] = 1.0;
         }
-        let out = settle_background(&f, h, w);
-        let (mu, mv) = (out[0], out[h * w]);
+        let (out, (mu, mv)) = settle_background(&f, h, w);
         assert!(mu.abs() <= 0.3 && mv.abs() <= 0.3, "median ({mu}, {mv})");
         for i in 0..h * w {
             let mover = [(3, 3), (3, 4), (4, 3), (4, 4)].contains(&(i / w, i % w));
@@ -141,7 +125,7 @@ mod tests {
         }
         // A uniform pan stays the pan.
         let pan: Vec<f32> = [vec![2.5; 16], vec![-1.0; 16]].concat();
-        assert_eq!(settle_background(&pan, 4, 4), pan);
+        assert_eq!(settle_background(&pan, 4, 4), (pan, (2.5, -1.0)));
     }
 
     fn uniform(h: usize, w: usize, u: f32, v: f32) -> Vec<f32> {
@@ -152,8 +136,8 @@ mod tests {
 
     #[test]
     fn a_uniform_motion_stays_uniform() {
-        // Everything moves 2 cells right: the two left columns are holes, filled from the right.
-        let out = forward_warp(&uniform(4, 6, 2.0, 0.0), 4, 6, 1.0);
+        // Everything moves 2 cells right: the two left columns are holes, the background's.
+        let out = forward_warp(&uniform(4, 6, 2.0, 0.0), 4, 6, 1.0, (2.0, 0.0));
         assert!(out[..24].iter().all(|&u| u == 2.0), "{out:?}");
         assert!(out[24..].iter().all(|&v| v == 0.0));
     }
@@ -168,20 +152,20 @@ mod tests {
                 f[y * w + x] = 2.0;
             }
         }
-        let out = forward_warp(&f, h, w, 1.0);
+        let out = forward_warp(&f, h, w, 1.0, (0.0, 0.0));
         for y in 1..3 {
             for x in 3..5 {
                 assert_eq!(out[y * w + x], 2.0, "({x}, {y}) should carry the block");
             }
         }
-        // Where the block was, nothing landed: the still background beside it fills in.
+        // Where the block was, nothing landed: the still background's motion fills in.
         assert_eq!(out[w + 1], 0.0);
         assert_eq!(out[w + 7], 0.0);
     }
 
     #[test]
     fn the_ratio_scales_the_motion_and_where_it_lands() {
-        let out = forward_warp(&uniform(3, 9, 1.0, -1.0), 3, 9, 2.0);
+        let out = forward_warp(&uniform(3, 9, 1.0, -1.0), 3, 9, 2.0, (1.0, -1.0));
         assert!(out[..27].iter().all(|&u| u == 2.0));
         assert!(out[27..].iter().all(|&v| v == -2.0));
     }
@@ -189,12 +173,16 @@ mod tests {
     #[test]
     fn everything_leaving_the_grid_gives_zero_and_non_finite_is_skipped() {
         assert!(
-            forward_warp(&uniform(2, 2, 50.0, 0.0), 2, 2, 1.0)
+            forward_warp(&uniform(2, 2, 50.0, 0.0), 2, 2, 1.0, (0.0, 0.0))
                 .iter()
                 .all(|&v| v == 0.0)
         );
         let mut f = uniform(2, 3, 0.0, 0.0);
         f[0] = f32::NAN;
-        assert!(forward_warp(&f, 2, 3, 1.0).iter().all(|v| v.is_finite()));
+        assert!(
+            forward_warp(&f, 2, 3, 1.0, (0.0, 0.0))
+                .iter()
+                .all(|v| v.is_finite())
+        );
     }
 }

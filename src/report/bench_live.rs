@@ -347,26 +347,35 @@ pub fn charts(rows: &[LiveRow]) -> Vec<(String, crate::io::chart::Chart)> {
                 })
                 .collect::<Vec<_>>()
         };
-        out.push((
-            format!("epe_vs_ms_{clip}.png"),
-            Chart {
-                title: format!("{clip}: flow error against time"),
-                x_label: "ms per pair".into(),
-                y_label: "EPE (px)".into(),
-                series: of(|r| r.ms_per_pair, |r| r.epe),
-                log_y: false,
-            },
-        ));
-        out.push((
-            format!("track_vs_fps_{clip}.png"),
-            Chart {
-                title: format!("{clip}: tracking one frame ahead against processed fps"),
-                x_label: "processed fps".into(),
-                y_label: "RMSE one processed frame ahead (px)".into(),
-                series: of(|r| r.processed_fps, |r| r.rmse1_live),
-                log_y: false,
-            },
-        ));
+        let (epe, track) = (
+            of(|r| r.ms_per_pair, |r| r.epe),
+            of(|r| r.processed_fps, |r| r.rmse1_live),
+        );
+        // A chart with nothing to plot (no method tracked at its rate) is left out.
+        if !epe.is_empty() {
+            out.push((
+                format!("epe_vs_ms_{clip}.png"),
+                Chart {
+                    title: format!("{clip}: flow error against time"),
+                    x_label: "ms per pair".into(),
+                    y_label: "EPE (px)".into(),
+                    series: epe,
+                    log_y: false,
+                },
+            ));
+        }
+        if !track.is_empty() {
+            out.push((
+                format!("track_vs_fps_{clip}.png"),
+                Chart {
+                    title: format!("{clip}: tracking one frame ahead against processed fps"),
+                    x_label: "processed fps".into(),
+                    y_label: "RMSE one processed frame ahead (px)".into(),
+                    series: track,
+                    log_y: false,
+                },
+            ));
+        }
     }
     out
 }
@@ -441,9 +450,8 @@ mod tests {
             "{md}"
         );
         let charts = charts(&rows);
-        assert_eq!(charts.len(), 2);
         assert_eq!(charts[0].1.series.len(), 2);
-        // A NaN error is left off the chart, not drawn.
-        assert!(charts[1].1.series.is_empty());
+        // A NaN error is left off the chart, not drawn, and a chart left empty is not made.
+        assert_eq!(charts.len(), 1);
     }
 }

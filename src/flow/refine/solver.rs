@@ -8,8 +8,11 @@
 //! 2×2 data system with the fixed part of the smoothness term folded in, and the edge weights),
 //! so a sweep only reads them; the increments of each colour live in their own zero-bordered
 //! array, so one colour's pass reads the other colour's array and writes its own, rows in
-//! parallel, with no copy, no allocation and no border case inside the loop.
+//! parallel, with no copy, no allocation and no border case inside the loop. The two row loops
+//! are compiled for the CPU's widest vector instructions, chosen at run time (`multiversion`; no
+//! fused multiply-adds are introduced, so every target gives the same bits).
 
+use multiversion::multiversion;
 use rayon::prelude::*;
 
 use super::linearise::Terms;
@@ -233,6 +236,7 @@ fn planes<const N: usize>(out: &mut [f32], w: usize) -> [&mut [f32]; N] {
 /// `pv` (`w + 2` each) are scratch. Every slice is cut to the row's length first, so the loop
 /// runs without bounds checks and vectorises (square roots and divisions included).
 #[allow(clippy::too_many_arguments)]
+#[multiversion(targets = "simd")]
 fn equations_row(
     t: &Terms,
     u: &[f32],
@@ -409,7 +413,7 @@ impl Increments {
 /// The SOR update of one row of one colour: `du`, `dv` its increments, `nu`, `nv` the
 /// neighbours' (left, right, up, down), `c` its fields; all slices of one length, so the loop
 /// runs without bounds checks and vectorises (the branch is a select).
-#[inline]
+#[multiversion(targets = "simd")]
 fn sweep_row(
     du: &mut [f32],
     dv: &mut [f32],
