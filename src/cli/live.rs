@@ -291,7 +291,7 @@ fn settings(a: &LiveArgs) -> Result<TrackConfig> {
                 ..TrackConfig::default()
             };
             // At most the weights' own updates, stopping once the flow settles: on the
-            // bench-live clips the same EPE as all twelve in 37 % of their time.
+            // bench-live clips the same EPE as all twelve in 37–52 % of their time.
             cfg.flow.iters = Some(pins::flow::iters::Iters::Auto);
             cfg
         }
