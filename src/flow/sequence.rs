@@ -62,18 +62,7 @@ pub fn pair_flows<'a, F: Frames + ?Sized>(
     frames: &'a F,
     iters: usize,
 ) -> impl Iterator<Item = Result<PairFlow>> + 'a {
-    let mut state = VideoFlow::independent();
-    (0..frames.count().saturating_sub(1)).map(move |index| {
-        let (a, b) = frames.pair(index)?;
-        let started = Instant::now();
-        let pair = state.pair(predictor, &a, &b, iters, 1.0)?;
-        Ok(PairFlow {
-            index,
-            flow: pair.flow,
-            ms: started.elapsed().as_secs_f64() * 1e3,
-            iters: pair.iters,
-        })
-    })
+    video_pairs(predictor, frames, iters, VideoFlow::independent())
 }
 
 /// As `pair_flows`, with the network run at `scale` ∈ (0, 4] of the frames' size and the flow
@@ -87,8 +76,22 @@ pub fn pair_flows_scaled<'a, F: Frames + ?Sized>(
     scale: f64,
     video: VideoOptions,
 ) -> Result<impl Iterator<Item = Result<PairFlow>> + 'a> {
-    let mut state = VideoFlow::new(video, scale)?;
-    Ok((0..frames.count().saturating_sub(1)).map(move |index| {
+    Ok(video_pairs(
+        predictor,
+        frames,
+        iters,
+        VideoFlow::new(video, scale)?,
+    ))
+}
+
+/// The pairs of `frames` in order through one video state.
+fn video_pairs<'a, F: Frames + ?Sized>(
+    predictor: &'a Predictor,
+    frames: &'a F,
+    iters: usize,
+    mut state: VideoFlow,
+) -> impl Iterator<Item = Result<PairFlow>> + 'a {
+    (0..frames.count().saturating_sub(1)).map(move |index| {
         let (a, b) = frames.pair(index)?;
         let started = Instant::now();
         let pair = state.pair(predictor, &a, &b, iters, 1.0)?;
@@ -98,5 +101,5 @@ pub fn pair_flows_scaled<'a, F: Frames + ?Sized>(
             ms: started.elapsed().as_secs_f64() * 1e3,
             iters: pair.iters,
         })
-    }))
+    })
 }
