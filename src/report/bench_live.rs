@@ -191,6 +191,9 @@ pub fn run(cfg: &LiveBenchConfig, python: &str, log: &dyn Fn(&str)) -> Result<Ve
     Ok(rows)
 }
 
+/// A method's flows for a sequence of frames, with its ms per pair.
+type Estimate<'a> = dyn Fn(&[Image]) -> Result<(Vec<Flow>, f64)> + 'a;
+
 /// One clip's frames and truth.
 struct Base<'a> {
     frames: &'a [Image],
@@ -206,7 +209,7 @@ impl Base<'_> {
         clip: &str,
         method: &str,
         tc: &TrackConfig,
-        estimate: &dyn Fn(&[Image]) -> Result<(Vec<Flow>, f64)>,
+        estimate: &Estimate,
     ) -> Result<LiveRow> {
         let mut opts = tc.options(Profile::Estimated, false)?;
         opts.horizons = vec![1];
