@@ -1,6 +1,7 @@
 //! Every shipped experiment config parses, validates and names only known keys: training
 //! configs (`train_*` with a model), tracking settings (`track_config_*`), tracking clips and
-//! tracking experiments (`track_*`), the real-data benchmark (`bench_real*`), Note S12's
+//! tracking experiments (`track_*`), the real-data benchmark (`bench_real*`), the live system's
+//! benchmark (`bench_live*`), Note S12's
 //! detection limits (`s12_limits*`) and generator configs (everything else).
 
 use std::path::Path;
@@ -40,6 +41,10 @@ fn every_experiment_config_is_valid() {
             settings += 1;
         } else if name.starts_with("bench_real") {
             pins::report::bench_real::config::load(&p).unwrap_or_else(fail(&p));
+        } else if name.starts_with("bench_live") {
+            let cfg =
+                pins::report::bench_live::LiveBenchConfig::from_file(&p).unwrap_or_else(fail(&p));
+            assert!(!cfg.points.is_empty() && !cfg.dis.is_empty(), "{name}");
         } else if name.starts_with("s12_limits") {
             pins::report::detection_limits::LimitsConfig::from_file(&p).unwrap_or_else(fail(&p));
         } else if name.starts_with("track_") {
