@@ -89,6 +89,9 @@ pub(crate) struct BenchLiveArgs {
     /// Python interpreter for DIS (scripts/dis_flows.py, built in).
     #[arg(long, default_value = "python3")]
     python: String,
+    /// Device for MMS: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
+    #[arg(long, default_value = "cpu")]
+    device: String,
 }
 
 #[derive(clap::Args)]
@@ -528,7 +531,8 @@ pub(crate) fn bench_live(a: BenchLiveArgs) -> Result<()> {
     if a.no_peers {
         cfg.dis.clear();
     }
-    let rows = run(&cfg, &a.python, &|line| eprintln!("{line}"))?;
+    let device = pins::flow::device::select(&a.device)?;
+    let rows = run(&cfg, &a.python, &device, &|line| eprintln!("{line}"))?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let command: Vec<String> = std::env::args().skip(1).collect();
     let md = format!(

@@ -13,12 +13,14 @@
 //! | `jpeg.rs` | is it a whole JPEG: markers, then strict decoding |
 //! | `reader.rs` | the reader thread: reconnection with backoff, latest-frame slot, counters |
 //! | `record.rs` | `--record` and `--replay` folders |
+//! | `clock.rs` | the stream's clock: processed frames' times and spans in stream frames |
 //! | `tracking.rs` | the tracker of `pins track`, one flow at a time |
 //! | `pipeline.rs` | frames → flow → tracks → one JSON line per processed frame |
 //! | `view.rs` | the browser view's frame: tracks and predicted paths drawn, flow beside |
 //! | `serve.rs` | the browser view's HTTP server (page, MJPEG re-stream, JSON, SSE) |
 
 pub mod chunked;
+pub mod clock;
 pub mod http;
 pub mod input;
 pub mod jpeg;

@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::clock::{Stamp, StreamClock};
 use super::reader::{Counts, Frame};
 use super::tracking::{LiveTracker, Object};
 use crate::error::Result;
@@ -43,6 +44,8 @@ pub struct Line {
     pub seq: u64,
     pub timestamp_s: f64,
     /// Frames received whole, dropped (replaced before processing) and skipped as bad so far.
+    /// Predictions are keyed by stream frames ahead, velocities in pixels per second, whatever
+    /// number of frames the pipeline dropped between two processed ones.
     pub received: u64,
     pub dropped: u64,
     pub bad: u64,
@@ -76,6 +79,8 @@ pub struct Pipeline {
     cfg: PipelineConfig,
     tracker: LiveTracker,
     video: VideoFlow,
+    /// The processed frames' times and spans in stream frames.
+    clock: StreamClock,
     prev: Option<Prepared>,
     /// The time step of the last flow (s): the warm start scales its motion by the next one's
     /// ratio to it.
@@ -93,6 +98,8 @@ struct Prepared {
     grey: GreyFrame,
     index: usize,
     seq: u64,
+    /// The camera's clock (s), when it sent one.
+    camera_s: Option<f64>,
     time_s: f64,
     received_s: f64,
 }
@@ -106,6 +113,7 @@ impl Pipeline {
             cfg,
             tracker,
             video,
+            clock: StreamClock::new(),
             prev: None,
             last_dt: None,
             count: 0,
@@ -127,6 +135,7 @@ impl Pipeline {
             image,
             index: self.count,
             seq: f.seq,
+            camera_s: f.camera_s,
             time_s: f.camera_s.unwrap_or(f.received_s),
             received_s: f.received_s,
         };
@@ -141,11 +150,20 @@ impl Pipeline {
             self.size_changes += 1;
             self.tracker.reset()?;
             self.video.reset();
+            self.clock = StreamClock::new();
             self.last_dt = None;
             self.prev = Some(cur);
             return Ok(None);
         }
-        let dt = step_seconds(&prev, &cur);
+        let (dt, camera) = step_seconds(&prev, &cur);
+        let stamp = |p: &Prepared| Stamp {
+            seq: p.seq,
+            time_s: p.time_s,
+            camera,
+        };
+        // Where this pair lies on the stream: the tracker's time step and its flow's span.
+        let step = self.clock.step(stamp(&prev), stamp(&cur), dt)?;
+        let period = self.clock.period().unwrap_or(dt / step.span);
         // Frames arrive at uneven gaps when the pipeline cannot keep up: the warm start's motion
         // is scaled by this gap over the last one.
         let gap_ratio = self
@@ -166,7 +184,7 @@ impl Pipeline {
         let flow_ms = t1.elapsed().as_secs_f64() * 1e3;
         let t2 = Instant::now();
         let pair = GreyPair::of(&prev.grey, &cur.grey);
-        let objects = self.tracker.step(prev.index, &flow, pair.as_ref())?;
+        let objects = self.tracker.step(step, &flow, pair.as_ref())?;
         let track_ms = t2.elapsed().as_secs_f64() * 1e3;
         let line = Line {
             frame: prev.index,
@@ -180,7 +198,7 @@ impl Pipeline {
                 .map(|o| LineObject {
                     id: o.id,
                     centroid: o.centroid,
-                    velocity: [o.velocity[0] / dt, o.velocity[1] / dt],
+                    velocity: [o.velocity[0] / period, o.velocity[1] / period],
                     predicted: o.predicted.clone(),
                 })
                 .collect(),
@@ -198,13 +216,14 @@ impl Pipeline {
 }
 
 /// The time between two processed frames: the camera's clock when it gives a plausible step
-/// (0 < dt ≤ 10 s), otherwise the arrival times, never below 1 ms.
-fn step_seconds(a: &Prepared, b: &Prepared) -> f64 {
-    let cam = b.time_s - a.time_s;
-    let dt = if cam > 0.0 && cam <= 10.0 {
-        cam
-    } else {
-        b.received_s - a.received_s
-    };
-    if dt.is_finite() { dt.max(1e-3) } else { 1e-3 }
+/// (0 < dt ≤ 10 s; then `true`), otherwise the arrival times, never below 1 ms.
+fn step_seconds(a: &Prepared, b: &Prepared) -> (f64, bool) {
+    if let (Some(ca), Some(cb)) = (a.camera_s, b.camera_s) {
+        let cam = cb - ca;
+        if cam > 0.0 && cam <= 10.0 {
+            return (cam, true);
+        }
+    }
+    let dt = b.received_s - a.received_s;
+    (if dt.is_finite() { dt.max(1e-3) } else { 1e-3 }, false)
 }

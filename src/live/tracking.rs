@@ -8,7 +8,9 @@ use std::collections::BTreeMap;
 use crate::error::Result;
 use crate::track::detect::detect;
 use crate::track::detect::photometric::GreyPair;
+use crate::track::detect::split::Seed;
 use crate::track::detect::still_background::StillBackground;
+use crate::track::motion::step::Step;
 use crate::track::run::TrackOptions;
 use crate::track::tracker::multi::Tracker;
 use crate::types::Flow;
@@ -18,12 +20,12 @@ use crate::types::Flow;
 pub struct Object {
     pub id: usize,
     pub centroid: [f64; 2],
-    /// Pixels per frame step (the region's flow, filtered).
+    /// Pixels per stream frame (the region's flow over its span, filtered).
     pub velocity: [f64; 2],
     pub observed: bool,
-    /// Horizon (frames, as a string) → predicted centroid.
+    /// Horizon (stream frames, as a string) → predicted centroid.
     pub predicted: BTreeMap<String, [f64; 2]>,
-    /// Predicted centroids 1 … max horizon frames ahead.
+    /// Predicted centroids 1 … max horizon stream frames ahead.
     pub path: Vec<[f64; 2]>,
 }
 
@@ -55,25 +57,39 @@ impl LiveTracker {
         Ok(())
     }
 
-    /// Tracks the flow from frame `frame` to the next; `pair` (the two frames) runs the
-    /// photometric test.
+    /// Tracks the flow from the processed frame at `step.t` to the next, `step.span` stream
+    /// frames later (`track::motion::step`); `pair` (the two frames) runs the photometric test.
     pub fn step(
         &mut self,
-        frame: usize,
+        step: Step,
         flow: &Flow,
         pair: Option<&GreyPair>,
     ) -> Result<Vec<Object>> {
         let o = &self.opts;
         let mut found = detect(flow, pair, o.threshold, o.noise_k, o.min_area, &o.detect)?;
         if let (Some(model), Some(pair)) = (self.placer.as_mut(), pair) {
-            found.place(model, pair.first_colour(), &self.tracker.seeds());
+            // A split part moves as its seed over this flow's span (divided back below).
+            let seeds: Vec<Seed> = self
+                .tracker
+                .seeds()
+                .into_iter()
+                .map(|s| Seed {
+                    velocity: (s.velocity.0 * step.span, s.velocity.1 * step.span),
+                    ..s
+                })
+                .collect();
+            found.place(model, pair.first_colour(), &seeds);
         }
         if let Some(pair) = pair {
             found.colour(pair.first_colour());
         }
-        let dets = found.accepted();
+        let dets: Vec<_> = found
+            .accepted()
+            .into_iter()
+            .map(|d| d.per_frame(step.span))
+            .collect();
         self.tracker.set_frame_size(flow.width(), flow.height());
-        let out = self.tracker.step(frame, &dets, self.max_h)?;
+        let out = self.tracker.step_at(step, &dets, self.max_h)?;
         Ok(out
             .into_iter()
             .map(|t| {

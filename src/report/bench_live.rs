@@ -150,8 +150,14 @@ pub struct LiveRow {
     pub id_switches_live: usize,
 }
 
-/// Runs every point and preset on every clip; `log` sees progress lines.
-pub fn run(cfg: &LiveBenchConfig, python: &str, log: &dyn Fn(&str)) -> Result<Vec<LiveRow>> {
+/// Runs every point and preset on every clip, MMS on `device` (DIS always on the CPU); `log`
+/// sees progress lines.
+pub fn run(
+    cfg: &LiveBenchConfig,
+    python: &str,
+    device: &burn::prelude::Device,
+    log: &dyn Fn(&str),
+) -> Result<Vec<LiveRow>> {
     cfg.validate()?;
     let mut rows = Vec::new();
     for clip in &cfg.clips {
@@ -169,7 +175,7 @@ pub fn run(cfg: &LiveBenchConfig, python: &str, log: &dyn Fn(&str)) -> Result<Ve
         };
         for p in &cfg.points {
             let tc = cfg.flow_of(p)?;
-            let predictor = tc.flow.predictor(burn::prelude::Device::flex())?;
+            let predictor = tc.flow.predictor(device.clone())?;
             let (iters, video) = tc.flow.iters_for(&predictor);
             let estimate = |f: &[Image]| -> Result<(Vec<Flow>, f64)> {
                 let pairs = pair_flows_scaled(&predictor, f, iters, tc.flow.scale, video)?

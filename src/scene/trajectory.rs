@@ -194,6 +194,12 @@ impl TrajectoryConfig {
 
     /// The two-frame scene between frames `n` and `n + 1`.
     pub fn pair(&self, n: usize) -> Result<LayeredScene> {
+        self.pair_between(n, n + 1)
+    }
+
+    /// The two-frame scene between frames `a` and `b` (frames a stream processed at uneven
+    /// gaps pairs).
+    pub fn pair_between(&self, a: usize, b: usize) -> Result<LayeredScene> {
         self.validate()?;
         let mut r = rng::stream(self.seed, &[rng::purpose::SCENE]);
         let bg = procedural(r.random(), 3, self.height, self.width, self.height as f32);
@@ -214,14 +220,17 @@ impl TrajectoryConfig {
                 size,
                 o.radius as f32,
             );
-            let (a, b) = (self.centroid(i, n), self.centroid(i, n + 1));
+            let (from, to) = (self.centroid(i, a), self.centroid(i, b));
             layers.push(Layer {
                 shape: Shape::Disc { radius: o.radius },
                 fill: Fill::Texture {
                     image: Arc::new(tex),
                     origin: (size as f64 / 2.0, size as f64 / 2.0),
                 },
-                poses: [Affine::translation(a.0, a.1), Affine::translation(b.0, b.1)],
+                poses: [
+                    Affine::translation(from.0, from.1),
+                    Affine::translation(to.0, to.1),
+                ],
             });
         }
         Ok(LayeredScene {
@@ -247,6 +256,13 @@ impl TrajectoryConfig {
     pub fn flow(&self, n: usize) -> Result<Flow> {
         self.check_frame(n, self.frames - 1)?;
         self.pair(n)?.flow()
+    }
+
+    /// Exact flow from frame `a` to frame `b`.
+    pub fn flow_between(&self, a: usize, b: usize) -> Result<Flow> {
+        self.check_frame(a, self.frames)?;
+        self.check_frame(b, self.frames)?;
+        self.pair_between(a, b)?.flow()
     }
 
     fn check_frame(&self, n: usize, end: usize) -> Result<()> {

@@ -155,6 +155,15 @@ pub fn padded_bbox(pixels: &[usize], w: usize, h: usize, pad: usize) -> Option<[
 }
 
 impl Region {
+    /// Its motion per frame when its flow spans `span` frames (a stream processed at uneven
+    /// gaps): speed, mean flow and aligned motion divided by it; the direction stays.
+    pub fn per_frame(mut self, span: f64) -> Region {
+        self.speed /= span;
+        self.mean_flow = (self.mean_flow.0 / span, self.mean_flow.1 / span);
+        self.aligned = self.aligned.map(|(u, v)| (u / span, v / span));
+        self
+    }
+
     /// The statistics of `pixels` (flat indices into `stats`, none out of range, at least one).
     pub fn of(pixels: &[usize], stats: &Flow) -> Region {
         let w = stats.width();

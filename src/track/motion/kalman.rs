@@ -2,7 +2,8 @@
 //! update (P = (I − KH) P (I − KH)ᵀ + K R Kᵀ), which keeps P symmetric positive-definite even
 //! with stiff settings (process noise 1e-9 against measurement noise 1e3, or the reverse).
 
-/// A constant-velocity filter for one coordinate: state (position, velocity), dt = 1 frame.
+/// A constant-velocity filter for one coordinate: state (position, velocity), the time step
+/// one frame (`predict`) or any number of frames (`predict_by`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ConstantVelocity {
     pub x: [f64; 2],
@@ -27,17 +28,23 @@ impl ConstantVelocity {
 
     /// Advances one frame.
     pub fn predict(&mut self) {
+        self.predict_by(1.0);
+    }
+
+    /// Advances `dt` frames (a stream processed at uneven gaps): F = [[1, dt], [0, 1]], and the
+    /// velocity's variance grows by q per frame.
+    pub fn predict_by(&mut self, dt: f64) {
         let [p, v] = self.x;
-        self.x = [p + v, v];
+        self.x = [p + v * dt, v];
         let pm = self.p;
-        // F P Fᵀ with F = [[1, 1], [0, 1]], plus Q.
-        let a = pm[0][0] + pm[0][1] + pm[1][0] + pm[1][1];
-        let b = pm[0][1] + pm[1][1];
-        let c = pm[1][0] + pm[1][1];
+        // F P Fᵀ, plus Q.
+        let a = pm[0][0] + dt * pm[0][1] + dt * pm[1][0] + dt * dt * pm[1][1];
+        let b = pm[0][1] + dt * pm[1][1];
+        let c = pm[1][0] + dt * pm[1][1];
         let d = pm[1][1];
         // Q drives the velocity alone: the velocity is the displacement to the next frame (what
-        // an optical flow measures), so x(n + 1) = x(n) + v(n) holds exactly.
-        self.p = [[a, b], [c, d + self.q]];
+        // an optical flow measures), so x(n + dt) = x(n) + v(n)·dt holds exactly.
+        self.p = [[a, b], [c, d + self.q * dt]];
         self.symmetrise();
     }
 
@@ -130,15 +137,20 @@ impl RandomWalk {
 
     /// Predicts one frame ahead and fuses `z` (skipped when not finite); returns the estimate.
     pub fn step(&mut self, z: f64) -> f64 {
+        self.step_by(z, 1.0)
+    }
+
+    /// Predicts `dt` frames ahead (the variance grows by q per frame) and fuses `z`.
+    pub fn step_by(&mut self, z: f64, dt: f64) -> f64 {
         if !z.is_finite() {
-            self.p += self.q;
+            self.p += self.q * dt;
             return self.x;
         }
         if !self.initialised {
             (self.x, self.p, self.initialised) = (z, self.r, true);
             return self.x;
         }
-        self.p += self.q;
+        self.p += self.q * dt;
         let k = self.p / (self.p + self.r);
         self.x += k * (z - self.x);
         // Joseph form in one dimension.
@@ -194,5 +206,49 @@ mod tests {
         }
         assert!((s.x - 5.0).abs() < 1e-6 && s.p > 0.0);
         assert!(s.step(f64::NAN).is_finite());
+    }
+
+    #[test]
+    fn a_step_of_k_frames_is_k_steps_of_one_without_noise_and_grows_the_variance_with_k() {
+        // Without process noise, predicting 3 frames at once is predicting 1 frame 3 times.
+        let (mut one, mut three) = (
+            ConstantVelocity::new(0.0, 1.0),
+            ConstantVelocity::new(0.0, 1.0),
+        );
+        for f in [&mut one, &mut three] {
+            f.update(10.0);
+            f.update_velocity(2.0, 0.5);
+        }
+        for _ in 0..3 {
+            one.predict();
+        }
+        three.predict_by(3.0);
+        for i in 0..2 {
+            assert!((one.x[i] - three.x[i]).abs() < 1e-12);
+            for j in 0..2 {
+                assert!((one.p[i][j] - three.p[i][j]).abs() < 1e-9 * one.p[i][j].abs().max(1.0));
+            }
+        }
+        assert!((three.x[0] - 16.0).abs() < 0.5, "{:?}", three.x);
+        // With it, the velocity's variance grows by q per frame, and a longer step trusts the
+        // next measurement more.
+        let (mut a, mut b) = (
+            ConstantVelocity::new(0.3, 1.0),
+            ConstantVelocity::new(0.3, 1.0),
+        );
+        for f in [&mut a, &mut b] {
+            f.update(0.0);
+            f.update_velocity(1.0, 0.5);
+        }
+        let p11 = a.p[1][1];
+        a.predict_by(1.0);
+        b.predict_by(4.0);
+        assert!((b.p[1][1] - p11 - 4.0 * 0.3).abs() < 1e-12 && b.p[0][0] > a.p[0][0]);
+        assert!(a.covariance_ok() && b.covariance_ok());
+        let mut w = RandomWalk::new(0.2, 1.0);
+        w.step(1.0);
+        let p = w.p;
+        w.step_by(f64::NAN, 5.0);
+        assert!((w.p - p - 1.0).abs() < 1e-12);
     }
 }

@@ -8,6 +8,7 @@ use std::collections::VecDeque;
 use super::forecast_score::ForecastScores;
 use super::kalman::{ConstantVelocity, RandomWalk};
 use super::predict::{fit_motion, supported_order};
+use super::step::{Step, along};
 use crate::error::{Error, Result};
 use crate::track::detect::roi::Region;
 
@@ -221,6 +222,8 @@ pub struct Mtp {
     history: VecDeque<(f64, f64, Option<f64>)>,
     /// The forecasts' record for `Method::Select`.
     scores: ForecastScores,
+    /// The time of the last step (stream frames).
+    last_t: Option<f64>,
 }
 
 impl Mtp {
@@ -236,6 +239,7 @@ impl Mtp {
             cos: RandomWalk::new(config.motion_q, config.motion_r),
             history: VecDeque::new(),
             scores: ForecastScores::new(2),
+            last_t: None,
             config,
         })
     }
@@ -253,13 +257,38 @@ impl Mtp {
         region: Option<&Region>,
         horizon: usize,
     ) -> Result<Estimate> {
+        self.step_at(Step::every(frame), region, horizon)
+    }
+
+    /// `step` on a stream processed at uneven gaps: the filters advance by the time since the
+    /// last step, the region's motion is per stream frame (its flow over `step.span`, divided
+    /// by it), the forecasts are 1 … `horizon` stream frames ahead and the association's look
+    /// `step.span` ahead, where the next processed frame is.
+    pub fn step_at(
+        &mut self,
+        step: Step,
+        region: Option<&Region>,
+        horizon: usize,
+    ) -> Result<Estimate> {
+        let frame = step.frame();
+        let dt = match self.last_t {
+            Some(last) if step.t > last => step.t - last,
+            Some(last) => {
+                return Err(Error::invalid(
+                    "tracking step",
+                    format!("time must increase, got {} after {last}", step.t),
+                ));
+            }
+            None => 1.0,
+        };
+        self.last_t = Some(step.t);
         for f in [
             &mut self.x,
             &mut self.y,
             &mut self.ahead_x,
             &mut self.ahead_y,
         ] {
-            f.predict();
+            f.predict_by(dt);
         }
         let (speed, direction) = match region {
             Some(r) => {
@@ -315,9 +344,9 @@ impl Mtp {
                         (s, (s > 1e-9).then(|| vy.atan2(vx)))
                     }
                 };
-                let s = self.speed.step(speed);
+                let s = self.speed.step_by(speed, dt);
                 let d = direction.map(|d| {
-                    let (sn, cs) = (self.sin.step(d.sin()), self.cos.step(d.cos()));
+                    let (sn, cs) = (self.sin.step_by(d.sin(), dt), self.cos.step_by(d.cos(), dt));
                     sn.atan2(cs)
                 });
                 (s, d)
@@ -327,12 +356,12 @@ impl Mtp {
                 // velocity that one bad alignment set drifts off (experiments/results/tracking_log.md).
                 self.ahead_x = self.x.clone();
                 self.ahead_y = self.y.clone();
-                (self.speed.step(f64::NAN), None)
+                (self.speed.step_by(f64::NAN, dt), None)
             }
         };
-        // The flow at frame n is the motion over [n, n + 1]: its time is n + ½.
+        // The flow at frame n is the motion over [n, n + span]: its time is the middle.
         self.history
-            .push_back((frame as f64 + 0.5, speed, direction));
+            .push_back((step.t + 0.5 * step.span, speed, direction));
         while self.history.len() > self.config.window {
             self.history.pop_front();
         }
@@ -342,6 +371,8 @@ impl Mtp {
             Some(_) => (self.ahead_x.x[0], self.ahead_y.x[0]),
             None => centroid,
         };
+        // The paths reach the next processed frame too (`step.span` ahead): the association's.
+        let reach = horizon.max(step.span.ceil() as usize);
         let poly = || -> Result<Vec<(f64, f64)>> {
             let samples: Vec<_> = self.history.iter().copied().collect();
             let order = supported_order(
@@ -351,27 +382,30 @@ impl Mtp {
                 self.config.samples_per_order.unwrap_or(1),
             );
             let mut fit = fit_motion(&samples, order)?;
-            fit.now = frame as f64;
+            fit.now = step.t;
             fit.hold_after = self
                 .config
                 .trend_reach
                 .filter(|&r| r > 0.0)
                 .map(|r| r * fit.span);
-            Ok(fit.extrapolate(start, horizon))
+            Ok(fit.extrapolate(start, reach))
         };
         let (vx, vy) = (self.x.x[1], self.y.x[1]);
         let constant = || -> Vec<(f64, f64)> {
-            (1..=horizon)
+            (1..=reach)
                 .map(|k| (start.0 + vx * k as f64, start.1 + vy * k as f64))
                 .collect()
         };
         let mut next = None;
-        let path = match self.config.method.unwrap_or(Method::Poly) {
+        let mut path = match self.config.method.unwrap_or(Method::Poly) {
             Method::Poly => poly()?,
             Method::ConstantVelocity => constant(),
             Method::Select => {
-                let candidates = [poly()?, constant()];
-                next = candidates[0].first().copied();
+                let mut candidates = [poly()?, constant()];
+                next = Some(along(start, &candidates[0], step.span));
+                for c in &mut candidates {
+                    c.truncate(horizon);
+                }
                 // Only a measured position checks the past forecasts; a coasting centre is
                 // itself a forecast.
                 if region.is_some() {
@@ -396,9 +430,9 @@ impl Mtp {
             ));
         }
         // The association looks from the tracking filter's centre.
-        let next = next.or(path.first().copied()).map_or(centroid, |p| {
-            (p.0 - start.0 + centroid.0, p.1 - start.1 + centroid.1)
-        });
+        let p = next.unwrap_or_else(|| along(start, &path, step.span));
+        let next = (p.0 - start.0 + centroid.0, p.1 - start.1 + centroid.1);
+        path.truncate(horizon);
         Ok(Estimate {
             frame,
             centroid,

@@ -14,10 +14,13 @@ use crate::track::detect::roi::{Region, covers};
 
 /// What association needs to know of one track.
 pub struct Tracked<'a> {
-    /// Its one-frame-ahead prediction (px).
+    /// Its prediction for this frame (px).
     pub predicted: (f64, f64),
     /// Its position filter's velocity (px/frame).
     pub velocity: (f64, f64),
+    /// The stream frames the prediction looked ahead (1 at the full rate): the gate widens
+    /// with each frame past the first as with each coasted frame.
+    pub lead: f64,
     /// Consecutive frames without a detection.
     pub misses: usize,
     pub confirmed: bool,
@@ -43,7 +46,8 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
     let cost: Vec<Vec<f64>> = tracks
         .iter()
         .map(|t| {
-            let gate = config.gate_px * (1.0 + 0.5 * t.misses as f64).min(config.max_gate_factor);
+            let coasted = t.misses as f64 + (t.lead - 1.0).max(0.0);
+            let gate = config.gate_px * (1.0 + 0.5 * coasted).min(config.max_gate_factor);
             let v = t.velocity;
             let vgate = config.velocity_gate_px + config.velocity_gate_rel * v.0.hypot(v.1);
             detections
@@ -197,6 +201,7 @@ mod tests {
         Tracked {
             predicted,
             velocity,
+            lead: 1.0,
             misses: 0,
             confirmed,
             appearance: None,

@@ -8,7 +8,8 @@
 use std::collections::VecDeque;
 
 /// One hit of a tentative track: the region's centre, its mean flow and the motion the frames
-/// confirm (the aligned motion where the alignment ran, the mean flow otherwise), px/frame.
+/// confirm (the aligned motion where the alignment ran, the mean flow otherwise), px to the
+/// next processed frame.
 pub type Hit = ((f64, f64), (f64, f64), (f64, f64));
 
 /// The motion-consistency test of a tentative track (see `TrackerConfig`).

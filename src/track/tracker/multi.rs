@@ -20,10 +20,11 @@ use super::appearance::Appearance;
 use super::associate::{Association, Tracked, associate};
 use super::reid::{Candidate, Lost, reid_distance};
 pub use super::tracker_config::TrackerConfig;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::track::detect::roi::{Region, covers};
 use crate::track::detect::split::Seed;
 use crate::track::motion::mtp::{Estimate, Mtp};
+use crate::track::motion::step::Step;
 use crate::track::robust;
 
 /// One track's estimate in one frame.
@@ -123,6 +124,9 @@ pub struct Tracker {
     frame_size: Option<(f64, f64)>,
     /// Ended tracks that may be re-identified.
     lost: Vec<Lost>,
+    /// The last step's time and span: how far ahead (stream frames) the tracks' predictions
+    /// look (`track::motion::step`).
+    last: Option<Step>,
 }
 
 impl Tracker {
@@ -137,6 +141,7 @@ impl Tracker {
             held: Vec::new(),
             frame_size: None,
             lost: Vec::new(),
+            last: None,
         })
     }
 
@@ -171,12 +176,38 @@ impl Tracker {
         detections: &[Region],
         horizon: usize,
     ) -> Result<Vec<TrackEstimate>> {
+        self.step_at(Step::every(frame), detections, horizon)
+    }
+
+    /// `step` on a stream processed at uneven gaps (`track::motion::step`): the detections'
+    /// motion is per stream frame (their flow over `step.span`, divided by it), predictions
+    /// are `horizon` stream frames ahead, and the frame counts (re-identification, the lost
+    /// tracks' memory) are in stream frames; confirmation and coasting count processed frames.
+    pub fn step_at(
+        &mut self,
+        step: Step,
+        detections: &[Region],
+        horizon: usize,
+    ) -> Result<Vec<TrackEstimate>> {
+        if let Some(last) = self.last
+            && step.t <= last.t
+        {
+            return Err(Error::invalid(
+                "tracking step",
+                format!("time must increase, got {} after {}", step.t, last.t),
+            ));
+        }
+        let frame = step.frame();
+        // The predictions were made this far ahead: the gates widen as for coasted frames.
+        let lead = self.last.map_or(1.0, |l| step.t - l.t);
+        self.last = Some(step);
         let view: Vec<Tracked> = self
             .tracks
             .iter()
             .map(|t| Tracked {
                 predicted: t.predicted,
                 velocity: t.mtp.velocity(),
+                lead,
                 misses: t.misses,
                 confirmed: t.confirmed,
                 appearance: t.appearance.as_ref(),
@@ -231,7 +262,7 @@ impl Tracker {
                     && median(&t.areas)
                         .is_some_and(|a| (d.pixels as f64) < self.config.partial_area_ratio * a)
             });
-            let e = t.mtp.step(frame, det.filter(|_| !partial), horizon)?;
+            let e = t.mtp.step_at(step, det.filter(|_| !partial), horizon)?;
             if let Some(d) = det.filter(|_| !partial) {
                 t.last_seen = (frame, e.centroid);
                 let aligned = d.aligned.map_or(0.0, |a| a.0.hypot(a.1));
@@ -255,7 +286,7 @@ impl Tracker {
                 t.hits += 1;
                 t.misses = 0;
                 if !t.confirmed {
-                    t.window.push_back(hit(d));
+                    t.window.push_back(hit(d, step.span));
                     while t.window.len() > confirm {
                         t.window.pop_front();
                     }
@@ -402,7 +433,7 @@ impl Tracker {
                 continue;
             }
             let mut mtp = Mtp::new(self.config.mtp.clone())?;
-            let e = mtp.step(frame, Some(d), horizon)?;
+            let e = mtp.step_at(step, Some(d), horizon)?;
             let mut t = Track {
                 id: 0,
                 born: (frame, d.centroid),
@@ -410,7 +441,7 @@ impl Tracker {
                 top_speed: 0.0,
                 key: self.next_key,
                 mtp,
-                window: VecDeque::from([hit(d)]),
+                window: VecDeque::from([hit(d, step.span)]),
                 hits: 1,
                 misses: 0,
                 confirmed: false,
@@ -491,11 +522,14 @@ impl Tracker {
 /// A tentative track's hit on `d`: the object's centre and motion as the frames measure them
 /// (the placed centre, the aligned motion), besides the flow's mean: a flow that gives a small
 /// mover a third of its motion would otherwise hold it back for as long as it is seen.
-fn hit(d: &Region) -> Hit {
+/// A detection's hit for the consistency test, its motions taken over `span` stream frames (to
+/// the next processed frame), where the test's centre will be.
+fn hit(d: &Region, span: f64) -> Hit {
+    let over = |m: (f64, f64)| (m.0 * span, m.1 * span);
     (
         d.placed.unwrap_or(d.centroid),
-        d.mean_flow,
-        d.aligned.unwrap_or(d.mean_flow),
+        over(d.mean_flow),
+        over(d.aligned.unwrap_or(d.mean_flow)),
     )
 }
 

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# One GPU lease's work in one command: the live system's benchmark on the GPU
+# (experiments/bench_live_gpu.json) while the host's cores generate the campaign's data, then
+# the campaign's training (scripts/train_campaign.sh gpu) for what is left of SECONDS.
+#
+#   scripts/gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]
+#
+# PINS is a pins binary built with `--features wgpu` (DEVICE wgpu, the default) or `cuda`.
+# OUTDIR receives at most 8 files: log.txt (this script's output), bench_live.md, and the
+# training's status.txt, state.json, model-*.bpk, optim-*.bin, log.csv and last.safetensors
+# in OUTDIR/train (continue here with CHECKPOINT=OUTDIR/train scripts/train_campaign.sh).
+# The training starts where train_campaign.sh says (a checkpoint in WORK, else the campaign's
+# committed weights). Ends within SECONDS of its start, whatever the benchmark does.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+PINS=${1:?usage: gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]}
+OUTDIR=${2:?usage: gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]}
+SECONDS_TOTAL=${3:?usage: gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]}
+DEVICE=${4:-wgpu}
+export WORK=${WORK:-/tmp/campaign}
+t0=$(date +%s)
+mkdir -p "$OUTDIR/train"
+exec > >(tee "$OUTDIR/log.txt") 2>&1
+say() { echo "[$(($(date +%s) - t0)) s] $*"; }
+say "gpu_increment: $DEVICE, $(nproc) cores, $SECONDS_TOTAL s"
+nvidia-smi -L 2>/dev/null || true
+
+# The data, in the background (train_campaign.sh then finds it made).
+(
+    for cfg in experiments/campaign/data/*.json; do
+        name=$(basename "$cfg" .json)
+        "$PINS" generate --quiet --config "$cfg" --out "$WORK/data/$name" || exit 1
+    done
+) > "$WORK.generate.log" 2>&1 &
+gen=$!
+
+# The live benchmark on the GPU, bounded so that the training keeps most of the lease.
+bench_s=$((SECONDS_TOTAL / 3))
+say "bench-live on $DEVICE (at most $bench_s s)"
+CUBECL_AUTOTUNE_LEVEL=minimal timeout "$bench_s" "$PINS" bench-live --device "$DEVICE" \
+    --config experiments/bench_live_gpu.json --out "$WORK.bench_live" &&
+    cp "$WORK.bench_live/report.md" "$OUTDIR/bench_live.md"
+say "bench-live exited"
+
+wait "$gen" || say "data generation failed: $(tail -3 "$WORK.generate.log")"
+say "data generated"
+
+# The training: whole minutes of what is left, less a minute for its last step and the copies.
+minutes=$(((SECONDS_TOTAL - ($(date +%s) - t0) - 60) / 60))
+[ "$minutes" -gt 9 ] && minutes=9
+if [ "$minutes" -ge 1 ]; then
+    say "training for $minutes min"
+    PINS="$PINS" DEVICE="$DEVICE" scripts/train_campaign.sh gpu "$minutes" "$OUTDIR/train"
+    rm -f "$OUTDIR/train/best.safetensors"
+else
+    say "no time left to train"
+fi
+say "done"
