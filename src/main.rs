@@ -10,6 +10,7 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 use cli::array::{ArrayCommand, array};
+use cli::calibrate::{CalibrateCommand, calibrate};
 use cli::data::{
     BenchArgs, GenerateArgs, PackArgs, PsfArgs, SimulateArgs, UnpackArgs, bench, generate, pack,
     psf, simulate, unpack,
@@ -44,6 +45,9 @@ enum Command {
     Unpack(UnpackArgs),
     /// Apply the metalens camera model to one image.
     Simulate(SimulateArgs),
+    /// Fit the camera model to a real camera from its captures (noise by photon transfer).
+    #[command(subcommand)]
+    Calibrate(CalibrateCommand),
     /// Compute a metalens PSF by scalar diffraction and compare its spot with the Airy radius.
     Psf(PsfArgs),
     /// Benchmark the camera model: throughput, and direct vs FFT convolution against f64.
@@ -135,6 +139,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Pack(a) => pack(a),
         Command::Unpack(a) => unpack(a),
         Command::Simulate(a) => simulate(a),
+        Command::Calibrate(c) => calibrate(c),
         Command::Psf(a) => psf(a),
         Command::Bench(a) => bench(a),
         Command::Train(a) => train(a),

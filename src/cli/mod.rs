@@ -1,6 +1,7 @@
 //! The subcommands, one file per family; `main.rs` only dispatches.
 
 pub mod array;
+pub mod calibrate;
 pub mod data;
 pub mod flow;
 pub mod live;

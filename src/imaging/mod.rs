@@ -1,6 +1,7 @@
 //! The camera model (Notes S4–S5, Eqs. S1–S4): a pipeline of stages built from a config.
 
 pub mod box_filter;
+pub mod calibrate;
 pub mod config;
 pub mod convolve;
 pub mod fft2;

@@ -33,6 +33,31 @@ pub fn read_image(path: &Path) -> Result<Image> {
     decode_image(&read_bytes(path)?, path)
 }
 
+/// A raster capture as [`read_image`] reads it, with its integer sample depth (`None` for
+/// float formats) and whether it is a JPEG (lossy: its pixels are not the sensor's).
+pub fn read_capture(path: &Path) -> Result<(Image, Option<BitDepth>, bool)> {
+    let bytes = read_bytes(path)?;
+    match ext_lower(path).as_str() {
+        "exr" | "npy" | "pfm" => Ok((decode_image(&bytes, path)?, None, false)),
+        _ => {
+            let img = decode_dynamic_bytes(&bytes, path)?;
+            let jpeg = bytes.starts_with(&[0xFF, 0xD8]);
+            let depth = match &img {
+                DynamicImage::ImageLuma8(_)
+                | DynamicImage::ImageLumaA8(_)
+                | DynamicImage::ImageRgb8(_)
+                | DynamicImage::ImageRgba8(_) => Some(BitDepth::Eight),
+                DynamicImage::ImageLuma16(_)
+                | DynamicImage::ImageLumaA16(_)
+                | DynamicImage::ImageRgb16(_)
+                | DynamicImage::ImageRgba16(_) => Some(BitDepth::Sixteen),
+                _ => None,
+            };
+            Ok((dynamic_to_image(img, path)?, depth, jpeg))
+        }
+    }
+}
+
 /// Decodes the bytes of an image file as [`read_image`] does; `path` names the file in errors
 /// and its extension picks the float formats.
 pub fn decode_image(bytes: &[u8], path: &Path) -> Result<Image> {

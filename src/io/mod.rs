@@ -26,7 +26,8 @@ pub use exr::{decode_exr, decode_flow_exr, read_exr, read_flow_exr, write_exr, w
 pub use flo::{decode_flo, encode_flo, read_flo, write_flo};
 pub use flow_file::{decode_flow, read_flow, write_flow};
 pub use image::{
-    BitDepth, decode_image, frame_files, image_files, read_image, read_image_pair, write_image,
+    BitDepth, decode_image, frame_files, image_files, read_capture, read_image, read_image_pair,
+    write_image,
 };
 pub use json::{in_config, read_json};
 pub use kitti::{decode_kitti_flow, read_kitti_flow, write_kitti_flow};

@@ -9,6 +9,7 @@ pub mod detection_limits;
 pub mod eval_plot;
 pub mod flow_bench;
 pub mod kernel_bench;
+pub mod noise_fit;
 pub mod refine_bench;
 pub mod timing;
 pub mod track_plot;

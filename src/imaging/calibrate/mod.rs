@@ -1,0 +1,11 @@
+//! Fitting the camera model (Notes S4–S5) to a real camera: the noise of Eq. S3 from
+//! flat-field captures (photon transfer).
+//!
+//! - `line_fit.rs`: the robust weighted line σ² = a·μ + b with confidence intervals.
+//! - `photon_transfer.rs`: levels' mean and temporal variance from captures, the fit per
+//!   channel and pooled.
+//! - `captures.rs`: a folder of captures grouped into levels, dark frames, refused encodings.
+
+pub mod captures;
+pub mod line_fit;
+pub mod photon_transfer;
