@@ -45,7 +45,8 @@ enum Command {
     Unpack(UnpackArgs),
     /// Apply the metalens camera model to one image.
     Simulate(SimulateArgs),
-    /// Fit the camera model to a real camera from its captures (noise by photon transfer).
+    /// Fit the camera model to a real camera from its captures: noise by photon transfer, the
+    /// PSF from a point source.
     #[command(subcommand)]
     Calibrate(CalibrateCommand),
     /// Compute a metalens PSF by scalar diffraction and compare its spot with the Airy radius.

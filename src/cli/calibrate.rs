@@ -1,4 +1,4 @@
-//! Commands that fit the camera model to a real camera: calibrate noise.
+//! Commands that fit the camera model to a real camera: calibrate noise, calibrate psf.
 
 use std::path::PathBuf;
 
@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Subcommand;
 
 use pins::imaging::CameraConfig;
-use pins::imaging::calibrate::{captures, photon_transfer};
+use pins::imaging::calibrate::{captures, photon_transfer, point_source};
 use pins::io;
 use pins::report::noise_fit;
 
@@ -23,6 +23,27 @@ pub(crate) enum CalibrateCommand {
         #[arg(long, default_value_t = 1.7)]
         gamma: f64,
         /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// A PSF from captures of a point source (a pinhole or an LED far away) in a folder named
+    /// EXPOSURE_N.png (one or more exposures, two or more captures of each: a longer one that
+    /// saturates the core lifts the faint wings out of the noise; dark_N.png for dark
+    /// frames). Writes the PSF file (.npy, .exr or 16-bit .png) that `pins simulate --psf` and
+    /// the camera's "psf" key take.
+    Psf {
+        /// Folder of captures.
+        captures: PathBuf,
+        /// Eq. S4's exponent the captures were encoded with (1 for linear raw captures).
+        #[arg(long, default_value_t = 1.7)]
+        gamma: f64,
+        /// Share of the energy above the noise floor the (odd, square) PSF keeps.
+        #[arg(long, default_value_t = 0.99)]
+        energy: f64,
+        /// The noise floor, in standard deviations of the background.
+        #[arg(long, default_value_t = 3.0)]
+        floor: f64,
+        /// Output PSF file: .npy, .exr (floats) or .png (16 bits).
         #[arg(long)]
         out: PathBuf,
     },
@@ -82,6 +103,61 @@ pub(crate) fn calibrate(c: CalibrateCommand) -> Result<()> {
                 l.b_ci[1],
                 l.points,
                 out.join("camera.json").display()
+            );
+            Ok(())
+        }
+        CalibrateCommand::Psf {
+            captures: dir,
+            gamma,
+            energy,
+            floor,
+            out,
+        } => {
+            let set = captures::group(&dir)?;
+            let read = |paths: &[PathBuf]| -> Result<Vec<pins::types::Image>> {
+                paths.iter().map(|p| Ok(io::read_image(p)?)).collect()
+            };
+            let exposures = set
+                .levels
+                .values()
+                .map(|paths| read(paths))
+                .collect::<Result<Vec<_>>>()?;
+            let dark = read(&set.dark)?;
+            let opts = point_source::PointOptions {
+                gamma,
+                energy,
+                floor_k: floor,
+            };
+            let est = point_source::estimate(&exposures, &dark, opts)?;
+            let ext = out
+                .extension()
+                .map(|e| e.to_string_lossy().to_lowercase())
+                .unwrap_or_default();
+            let mut image = est.psf.image().clone();
+            if !matches!(ext.as_str(), "npy" | "exr" | "pfm") {
+                // Integer files hold the PSF at its own peak (readers normalise it again).
+                let top = image.data().iter().fold(0.0f32, |m, &v| m.max(v));
+                image.data_mut().iter_mut().for_each(|v| *v /= top);
+            }
+            io::write_image(&out, &image, io::BitDepth::Sixteen)?;
+            if est.saturated > 0 {
+                eprintln!(
+                    "warning: {} samples are saturated in every exposure; their energy is \
+                     underestimated (add a shorter exposure)",
+                    est.saturated
+                );
+            }
+            let (h, w) = est.psf.size();
+            println!(
+                "{}: {}×{}×{} PSF, centre ({:.2}, {:.2}) in the captures, 80 % of the energy \
+                 within {:.2} px",
+                out.display(),
+                est.psf.channels(),
+                h,
+                w,
+                est.centre.0,
+                est.centre.1,
+                est.ee80_radius
             );
             Ok(())
         }

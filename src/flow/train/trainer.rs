@@ -77,12 +77,17 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     let mut batches = Prefetch::new(&config, &train_set, step, stop, Prefetch::default_depth());
     let (mut saved_at, mut last_save) = (step, Instant::now());
     let (mut last_step, mut last_validation) = (Duration::ZERO, Duration::ZERO);
+    // A session's first step and first validation also compile a GPU's kernels (minutes on
+    // wgpu): what they took says nothing of the next one, which is expected to take as long
+    // as the last step after them.
+    let (mut steps_here, mut validations_here) = (0usize, 0usize);
     let mut stopped = None;
     while step < stop {
         let validates = (step + 1) % config.val_every == 0 || step + 1 == config.steps;
-        let next = last_step
+        let expected = |last: Duration, done: usize| if done > 1 { last } else { Duration::ZERO };
+        let next = expected(last_step, steps_here)
             + if validates {
-                last_validation
+                expected(last_validation, validations_here)
             } else {
                 Duration::ZERO
             };
@@ -114,6 +119,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         step += 1;
         run.last_loss = Some(stats.loss as f64);
         last_step = t0.elapsed();
+        steps_here += 1;
         let ms = last_step.as_secs_f64() * 1e3;
         run.seconds += ms / 1e3;
 
@@ -142,6 +148,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             row.val_epe = Some(scores.epe);
             row.val_px1 = Some(scores.px1);
             last_validation = t_val.elapsed();
+            validations_here += 1;
         }
         run.log.append(&row)?;
         bar.set_message(format!(
