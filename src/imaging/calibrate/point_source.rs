@@ -91,10 +91,13 @@ pub fn estimate(
             format!("{w}×{h} is too small to hold a PSF and a border of background"),
         ));
     }
-    if !(opts.gamma.is_finite() && opts.gamma > 0.0)
-        || !(opts.energy > 0.0 && opts.energy <= 1.0)
-        || !(opts.floor_k.is_finite() && opts.floor_k >= 0.0)
-    {
+    let valid = opts.gamma.is_finite()
+        && opts.gamma > 0.0
+        && opts.energy > 0.0
+        && opts.energy <= 1.0
+        && opts.floor_k.is_finite()
+        && opts.floor_k >= 0.0;
+    if !valid {
         return Err(Error::invalid(
             "point source",
             format!(
@@ -167,7 +170,7 @@ pub fn estimate(
     // A sample saturated in every exposure keeps the dimmest's value: an underestimate,
     // counted in the estimate.
     let mut saturated = 0;
-    for i in 0..n {
+    for (i, out) in signal.iter_mut().enumerate() {
         let ch = i / (h * w);
         let l = match levels.iter().rev().find(|l| !l.saturated[i]) {
             Some(l) => l,
@@ -177,7 +180,7 @@ pub fn estimate(
             }
         };
         let v = l.signal[i] / l.scale;
-        signal[i] = if v > opts.floor_k * l.noise[ch] / l.scale {
+        *out = if v > opts.floor_k * l.noise[ch] / l.scale {
             v
         } else {
             0.0
@@ -576,7 +579,7 @@ mod tests {
     #[test]
     fn faint_or_mismatched_captures_are_refused() {
         let blank = vec![Image::filled(3, 40, 40, 0.1); 2];
-        let e = estimate(&[blank.clone()], &[], PointOptions::default()).unwrap_err();
+        let e = estimate(std::slice::from_ref(&blank), &[], PointOptions::default()).unwrap_err();
         assert!(e.to_string().contains("noise floor"), "{e}");
         let e = estimate(
             &[blank],
