@@ -134,10 +134,14 @@ fn solve(points: &[(f64, f64, usize)], w: &[f64]) -> Result<(f64, f64)> {
     Ok(((sw * sxy - sx * sy) / det, (sxx * sy - sx * sxy) / det))
 }
 
-fn median(v: &[f64]) -> f64 {
+/// The median (the mean of the two middle values for an even count; 0 for none).
+pub(super) fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
     let n = s.len();
+    if n == 0 {
+        return 0.0;
+    }
     if n % 2 == 1 {
         s[n / 2]
     } else {

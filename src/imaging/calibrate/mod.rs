@@ -6,8 +6,11 @@
 //!   channel and pooled.
 //! - `captures.rs`: a folder of captures grouped into levels, dark frames, refused encodings.
 //! - `point_source.rs`: a PSF from captures of a point source at one or more exposures.
+//! - `support.rs`: where the source's energy lies (support, centroid, radius) and Lanczos-3
+//!   resampling.
 
 pub mod captures;
 pub mod line_fit;
 pub mod photon_transfer;
 pub mod point_source;
+mod support;
