@@ -1,0 +1,87 @@
+"""Command line: `python -m pins_mms infer` (the network's flow for one pair, from PyTorch or an
+ONNX file) and `python -m pins_mms export` (a weights file to ONNX)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pins_mms", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+    i = sub.add_parser("infer", help="the network's flow for one pair, written as .flo "
+                       "(pins infer --start zero --refine none)")
+    i.add_argument("--weights", default="default", help="pins weights file, or default / mms-small")
+    i.add_argument("--onnx", help="run this ONNX file (python -m pins_mms export) with ONNX Runtime instead")
+    i.add_argument("--img1", required=True)
+    i.add_argument("--img2", required=True)
+    i.add_argument("--out", required=True, help="output .flo")
+    i.add_argument("--iters", type=int, help="refinements (default: the weights' own)")
+    i.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
+    e = sub.add_parser("export", help="export a weights file to ONNX")
+    e.add_argument("weights", help="pins weights file, or default / mms-small")
+    e.add_argument("--out", required=True, help="output .onnx")
+    e.add_argument("--iters", type=int, help="refinements, fixed in the graph (default: the weights' own)")
+    e.add_argument("--size", help="WxH: a fixed input size instead of any size")
+    e.add_argument("--opset", type=int, default=18)
+    args = p.parse_args(argv)
+    try:
+        if args.command == "infer":
+            return infer(args)
+        return export(args)
+    except (ValueError, OSError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+def infer(args) -> int:
+    import numpy as np
+
+    from .io import read_image, write_flo
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".flo":
+        raise ValueError(f"--out {out}: expected a .flo file")
+    a, b = read_image(args.img1), read_image(args.img2)
+    if a.shape != b.shape:
+        raise ValueError(f"second image is {b.shape[2]}x{b.shape[1]}, the first {a.shape[2]}x{a.shape[1]}")
+    if args.onnx:
+        from .onnx_export import run_onnx
+
+        flow = run_onnx(args.onnx, a[None], b[None])[0]
+    else:
+        import torch
+
+        from .model import FlowModel
+        from .weights import load
+
+        if args.iters is not None and not 1 <= args.iters <= 256:
+            raise ValueError(f"--iters must be 1..=256, got {args.iters}")
+        model = FlowModel(load(args.weights, args.device), args.iters)
+        with torch.inference_mode():
+            t = lambda x: torch.from_numpy(x[None]).to(args.device)
+            flow = model(t(a), t(b))[0].cpu().numpy()
+    if not np.isfinite(flow).all():
+        raise ValueError("the network produced non-finite flow")
+    write_flo(out, flow)
+    return 0
+
+
+def export(args) -> int:
+    from .onnx_export import export_onnx
+
+    size = None
+    if args.size:
+        try:
+            w, h = (int(v) for v in args.size.lower().split("x"))
+        except ValueError:
+            raise ValueError(f"--size {args.size!r}: expected WxH, e.g. 640x480") from None
+        size = (h, w)
+    export_onnx(args.weights, args.out, args.iters, size, args.opset)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
