@@ -118,8 +118,16 @@ fn real_pairs(dir: &Path) -> Vec<Pair> {
                 "middlebury_rubberwhale/frame10.png",
                 "middlebury_rubberwhale/frame11.png",
             ),
-            ("kitti", "kitti2015_000000/frame1.png", "kitti2015_000000/frame2.png"),
-            ("sintel", "sintel_alley1/frame_0001.png", "sintel_alley1/frame_0002.png"),
+            (
+                "kitti",
+                "kitti2015_000000/frame1.png",
+                "kitti2015_000000/frame2.png",
+            ),
+            (
+                "sintel",
+                "sintel_alley1/frame_0001.png",
+                "sintel_alley1/frame_0002.png",
+            ),
         ] {
             pairs.push(Pair {
                 name: name.into(),
@@ -229,6 +237,26 @@ fn pytorch_and_onnx_give_pins_network_flow_on_real_pairs() {
     }
 }
 
+/// A config of neither named size: group norm in both encoders, 3 levels of radius 3, two
+/// dilations.
+fn other_config() -> MmsConfig {
+    MmsConfig {
+        name: "other".into(),
+        encoder_dims: [16, 24, 32],
+        feature_dim: 48,
+        hidden_dim: 32,
+        context_dim: 16,
+        motion_dims: [32, 16, 24],
+        head_dim: 32,
+        dilations: vec![2, 4],
+        corr_levels: 3,
+        corr_radius: 3,
+        iters: 6,
+        feature_norm: NormKind::Group,
+        context_norm: NormKind::Group,
+    }
+}
+
 #[test]
 fn any_weights_file_loads_by_its_metadata() {
     let Some(py) = python() else { return };
@@ -239,7 +267,10 @@ fn any_weights_file_loads_by_its_metadata() {
         let file = d.join(format!("{name}.safetensors"));
         weights::save(&file, &Mms::new(&cfg, &Device::flex()), &cfg).unwrap();
         let file = file.to_str().unwrap();
-        let (want, got) = (d.join(format!("{name}_pins.flo")), d.join(format!("{name}.flo")));
+        let (want, got) = (
+            d.join(format!("{name}_pins.flo")),
+            d.join(format!("{name}.flo")),
+        );
         pins_flow(file, pair, 4, &want);
         let out = pins_mms(
             &py,
@@ -295,8 +326,16 @@ fn bad_weights_files_are_refused_with_the_reason() {
     for (name, bytes, reason) in [
         ("other.safetensors", other, "do not fit the mms config"),
         ("bare.safetensors", bare, "not a pins weights file"),
-        ("truncated.safetensors", shipped[..shipped.len() / 2].to_vec(), "truncated"),
-        ("text.safetensors", b"weights".to_vec(), "not a safetensors file"),
+        (
+            "truncated.safetensors",
+            shipped[..shipped.len() / 2].to_vec(),
+            "truncated",
+        ),
+        (
+            "text.safetensors",
+            b"weights".to_vec(),
+            "not a safetensors file",
+        ),
     ] {
         let file = d.join(name);
         std::fs::write(&file, bytes).unwrap();
@@ -323,7 +362,12 @@ fn bad_weights_files_are_refused_with_the_reason() {
         let onnx = d.join(format!("{name}.onnx"));
         let out = pins_mms(
             &py,
-            &["export", file.to_str().unwrap(), "--out", onnx.to_str().unwrap()],
+            &[
+                "export",
+                file.to_str().unwrap(),
+                "--out",
+                onnx.to_str().unwrap(),
+            ],
         );
         assert_eq!(out.status.code(), Some(2), "{name}: export");
         assert!(!onnx.exists(), "{name}: a partial ONNX file");

@@ -39,7 +39,17 @@ def export_onnx(weights: str, out: str | Path, iters: int | None = None,
             raise ValueError(f"size {w}x{h}: sides must be multiples of 8 and at least {cfg.min_side}")
     else:
         h, w = cfg.min_side + 24, cfg.min_side + 40
-    model = _Fixed(mms, iters).eval()
+    class Fixed(torch.nn.Module):
+        """The network at a fixed iteration count, as a module of two inputs."""
+
+        def __init__(self):
+            super().__init__()
+            self.mms = mms
+
+        def forward(self, image1, image2):
+            return self.mms(image1, image2, iters)
+
+    model = Fixed().eval()
     example = (torch.rand(1, 3, h, w), torch.rand(1, 3, h, w))
     dynamic = None
     if size is None:
@@ -65,23 +75,6 @@ def export_onnx(weights: str, out: str | Path, iters: int | None = None,
     finally:
         Path(tmp).unlink(missing_ok=True)
     return out
-
-
-class _Fixed:
-    """The network at a fixed iteration count, as a module of two inputs."""
-
-    def __new__(cls, mms, iters):
-        import torch
-
-        class Fixed(torch.nn.Module):
-            def __init__(self):
-                super().__init__()
-                self.mms = mms
-
-            def forward(self, image1, image2):
-                return self.mms(image1, image2, iters)
-
-        return Fixed()
 
 
 def pad_to_network(images: np.ndarray, min_side: int) -> tuple[np.ndarray, tuple[int, int, int, int]]:
