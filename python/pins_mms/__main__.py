@@ -26,10 +26,22 @@ def main(argv: list[str] | None = None) -> int:
     e.add_argument("--iters", type=int, help="refinements, fixed in the graph (default: the weights' own)")
     e.add_argument("--size", help="WxH: a fixed input size instead of any size")
     e.add_argument("--opset", type=int, default=18)
+    bn = sub.add_parser("bench", help="time the network on one pair of random images (the "
+                        "counterpart of pins bench-flow --mode infer); one JSON line")
+    bn.add_argument("--weights", default="default", help="pins weights file, or default / mms-small")
+    bn.add_argument("--height", type=int, default=368)
+    bn.add_argument("--width", type=int, default=496)
+    bn.add_argument("--iters", type=int, default=12)
+    bn.add_argument("--reps", type=int, default=3)
+    bn.add_argument("--device", default="cpu")
+    bn.add_argument("--onnx", help="time this ONNX file by ONNX Runtime instead (CPU, or CUDA "
+                    "where onnxruntime-gpu is installed)")
     args = p.parse_args(argv)
     try:
         if args.command == "infer":
             return infer(args)
+        if args.command == "bench":
+            return bench(args)
         return export(args)
     except (ValueError, OSError) as err:
         print(f"error: {err}", file=sys.stderr)
@@ -80,6 +92,57 @@ def export(args) -> int:
             raise ValueError(f"--size {args.size!r}: expected WxH, e.g. 640x480") from None
         size = (h, w)
     export_onnx(args.weights, args.out, args.iters, size, args.opset)
+    return 0
+
+
+def bench(args) -> int:
+    """The median of `--reps` runs after one untimed warm-up (kernel selection, allocation)."""
+    import json
+    import statistics
+    import time
+
+    import numpy as np
+
+    if args.reps < 1 or args.iters < 1 or min(args.height, args.width) < 1:
+        raise ValueError("--reps, --iters, --height and --width must be positive")
+    rng = np.random.default_rng(0)
+    a, b = (rng.random((1, 3, args.height, args.width), dtype=np.float32) for _ in range(2))
+    if args.onnx:
+        import onnxruntime as ort
+
+        from .onnx_export import pad_to_network
+
+        providers = [p for p in ("CUDAExecutionProvider", "CPUExecutionProvider")
+                     if p in ort.get_available_providers()]
+        session = ort.InferenceSession(args.onnx, providers=providers)
+        min_side = int(session.get_modelmeta().custom_metadata_map.get("pins.min_side", "64"))
+        feed = {"image1": pad_to_network(a, min_side)[0], "image2": pad_to_network(b, min_side)[0]}
+        run = lambda: session.run(["flow"], feed)
+        tool, iters = f"onnxruntime {providers[0]}", session.get_modelmeta().custom_metadata_map.get("pins.iters")
+    else:
+        import torch
+
+        from .model import FlowModel
+        from .weights import load
+
+        model = FlowModel(load(args.weights, args.device), args.iters)
+        ta, tb = torch.from_numpy(a).to(args.device), torch.from_numpy(b).to(args.device)
+        sync = torch.cuda.synchronize if str(args.device).startswith("cuda") else (lambda: None)
+
+        def run():
+            with torch.inference_mode():
+                model(ta, tb)
+            sync()
+
+        tool, iters = f"pins_mms torch {torch.__version__} {args.device}", args.iters
+    run()
+    times = []
+    for _ in range(args.reps):
+        t = time.perf_counter()
+        run()
+        times.append(1000 * (time.perf_counter() - t))
+    print(json.dumps({"tool": tool, "height": args.height, "width": args.width, "iters": iters,
+                      "ms": round(statistics.median(times), 1), "reps": args.reps}))
     return 0
 
 
