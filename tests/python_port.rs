@@ -212,7 +212,7 @@ fn pytorch_and_onnx_give_pins_network_flow_on_real_pairs() {
     // iterations it is the same graph, shorter).
     let onnx = d.join("mms12.onnx");
     let mut jobs = vec![serde_json::json!({"export": weights, "iters": 12, "out": onnx})];
-    let mut checks = Vec::new();
+    let (mut checks, mut floors) = (Vec::new(), Vec::new());
     for iters in [4, 12] {
         for p in &pairs {
             let reference = d.join(format!("{}_{iters}_pins.flo", p.name));
@@ -229,11 +229,39 @@ fn pytorch_and_onnx_give_pins_network_flow_on_real_pairs() {
                 let what = format!("{} {kind} at {iters} iterations", p.name);
                 checks.push((what, out, reference.clone()));
             }
+            if iters == 12 {
+                let out = d.join(format!("{}_{iters}_f64.flo", p.name));
+                jobs.push(serde_json::json!({
+                    "weights": weights, "float64": true, "iters": iters, "img1": p.img1,
+                    "img2": p.img2, "out": out,
+                }));
+                floors.push((
+                    p.name.clone(),
+                    out,
+                    reference,
+                    d.join(format!("{}_12_torch.flo", p.name)),
+                ));
+            }
         }
     }
     run_jobs(&py, d, &serde_json::Value::Array(jobs));
     for (what, got, reference) in checks {
         assert_matches(&what, &got, &reference);
+    }
+    // Against a float64 run: how far float32 arithmetic alone takes each form from exact.
+    for (name, f64_flow, pins_flow, torch_flow) in floors {
+        let exact = read_flo(&f64_flow).unwrap();
+        for (who, path) in [("pins", pins_flow), ("torch float32", torch_flow)] {
+            let (mean, p999, max, _) = difference(&read_flo(&path).unwrap(), &exact);
+            eprintln!(
+                "{name} {who} at 12 iterations against float64: mean {mean:.2e} px, 99.9 % \
+                 {p999:.2e} px, max {max:.2e} px"
+            );
+            assert!(
+                mean <= 1e-3 && max <= 1e-2,
+                "{name} {who}: {mean:.2e} / {max:.2e}"
+            );
+        }
     }
 }
 

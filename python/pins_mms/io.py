@@ -29,10 +29,10 @@ def read_image(path: str | Path) -> np.ndarray:
             if mode in ("I;16", "I;16B", "I;16L", "I"):
                 a = np.asarray(im, dtype=np.float64).astype(np.float32) / np.float32(65535.0)
                 a = np.repeat(a[None], 3, 0)
-            elif mode in ("L", "LA", "P", "PA", "1"):
+            elif mode in ("L", "LA", "1"):
                 a = np.asarray(im.convert("L"), dtype=np.uint8).astype(np.float32) / np.float32(255.0)
                 a = np.repeat(a[None], 3, 0)
-            else:
+            else:  # colour, palette (expanded to RGB as pins's decoder does)
                 a = np.asarray(im.convert("RGB"), dtype=np.uint8).astype(np.float32) / np.float32(255.0)
                 a = a.transpose(2, 0, 1)
     except OSError as e:

@@ -6,6 +6,8 @@ comparison with pins in tests/python_port.rs:
 Each job is one of
     {"export": WEIGHTS, "iters": N, "out": F.onnx}             export to ONNX (dynamic size)
     {"weights": WEIGHTS, "img1": A, "img2": B, "iters": N, "out": F.flo}    PyTorch
+        (with "float64": true, in double precision: the reference both float32 forms are
+        measured against)
     {"onnx": F.onnx, "img1": A, "img2": B, "out": F.flo}       ONNX Runtime
 and prints one JSON line per job with its seconds.
 """
@@ -36,11 +38,14 @@ def main(path: str) -> None:
             if "onnx" in job:
                 flow = run_onnx(job["onnx"], a, b)[0]
             else:
-                if job["weights"] not in models:
-                    models[job["weights"]] = load(job["weights"])
+                dtype = torch.float64 if job.get("float64") else torch.float32
+                key = (job["weights"], dtype)
+                if key not in models:
+                    models[key] = load(job["weights"]).to(dtype)
                 with torch.inference_mode():
-                    model = FlowModel(models[job["weights"]], job["iters"])
-                    flow = model(torch.from_numpy(a), torch.from_numpy(b))[0].numpy()
+                    model = FlowModel(models[key], job["iters"])
+                    ta, tb = (torch.from_numpy(x).to(dtype) for x in (a, b))
+                    flow = model(ta, tb)[0].float().numpy()
             write_flo(job["out"], flow)
         print(json.dumps({"out": job["out"], "seconds": round(time.perf_counter() - t, 3)}), flush=True)
 
