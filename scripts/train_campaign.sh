@@ -11,6 +11,12 @@
 #                                                  weights, log and pairs/s to OUTDIR (each file
 #                                                  under 16 MiB)
 #   scripts/train_campaign.sh status               where the campaign stands
+#   scripts/train_campaign.sh average [N]          the mean of the campaign's last N snapshots
+#                                                  (default 5; stochastic weight averaging): the
+#                                                  run's last.safetensors and the committed
+#                                                  versions of the campaign's weights in git
+#                                                  history, newest first, duplicates once, by
+#                                                  `pins average` into $WORK/average.safetensors
 #
 # Where a session starts, in order: the run folder's checkpoint ($WORK/run, --resume: exactly
 # where it stopped); else a checkpoint folder brought from elsewhere (CHECKPOINT=DIR holding
@@ -38,7 +44,7 @@ START=datasets/weights/mms-small-real.safetensors
 die() { echo "train_campaign: $*" >&2; exit 1; }
 mode=${1:-run}
 case "$mode" in
-    run | gpu | status) shift || true ;;
+    run | gpu | status | average) shift || true ;;
     *) mode=run ;;
 esac
 
@@ -94,6 +100,31 @@ PY
 }
 if [ "$mode" = status ]; then
     status
+    exit 0
+fi
+
+if [ "$mode" = average ]; then
+    n=${1:-5}
+    [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 2 ] || die "average: N must be an integer of at least 2, got $n"
+    git rev-parse --git-dir >/dev/null 2>&1 || die "average: the snapshots are in git history; this is no git checkout"
+    mkdir -p "$WORK/snapshots"
+    candidates=()
+    if [ -f "$RUN/last.safetensors" ]; then candidates+=("$RUN/last.safetensors"); fi
+    for c in $(git log --format=%h -- "$WEIGHTS"); do
+        git show "$c:$WEIGHTS" > "$WORK/snapshots/$c.safetensors" 2>/dev/null || continue
+        candidates+=("$WORK/snapshots/$c.safetensors")
+    done
+    files=()
+    seen=" "
+    for f in "${candidates[@]}"; do
+        sum=$(sha256sum "$f" | cut -d' ' -f1)
+        case "$seen" in *" $sum "*) continue ;; esac
+        seen+="$sum "
+        files+=("$f")
+        [ "${#files[@]}" -lt "$n" ] || break
+    done
+    [ "${#files[@]}" -ge 2 ] || die "average: fewer than 2 snapshots (a shallow clone has no history)"
+    "$PINS" average "${files[@]}" --out "$WORK/average.safetensors"
     exit 0
 fi
 

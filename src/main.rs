@@ -16,8 +16,9 @@ use cli::data::{
     psf, simulate, unpack,
 };
 use cli::flow::{
-    BenchFlowArgs, BenchLiveArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs, ExportArgs, InferArgs,
-    TrainArgs, bench_flow, bench_live, bench_real, detect_limits, eval, export, infer, train,
+    AverageArgs, BenchFlowArgs, BenchLiveArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs,
+    ExportArgs, InferArgs, TrainArgs, average, bench_flow, bench_live, bench_real, detect_limits,
+    eval, export, infer, train,
 };
 use cli::live::{LiveArgs, live};
 use cli::optics::{CompareArgs, OpticsCommand, compare, optics};
@@ -57,6 +58,8 @@ enum Command {
     Train(TrainArgs),
     /// Export a training run's weights (safetensors with the model config inside).
     Export(ExportArgs),
+    /// Average several weights files of one network, tensor by tensor (snapshots of a training run: stochastic weight averaging)
+    Average(AverageArgs),
     /// Estimate optical flow with trained weights, for one pair or a folder of frames.
     Infer(InferArgs),
     /// Evaluate weights on a dataset: EPE, AE, 1/3/5 px and ms per pair for several iteration counts.
@@ -145,6 +148,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Bench(a) => bench(a),
         Command::Train(a) => train(a),
         Command::Export(a) => export(a),
+        Command::Average(a) => average(a),
         Command::Infer(a) => infer(a),
         Command::Eval(a) => eval(a),
         Command::BenchFlow(a) => bench_flow(a),

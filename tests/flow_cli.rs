@@ -506,3 +506,35 @@ fn infer_at_another_scale_gives_flow_at_the_frames_size() {
         assert!(!out.exists(), "{bad}: no output");
     }
 }
+
+#[test]
+fn average_writes_the_mean_of_one_network_and_refuses_others() {
+    use burn::prelude::Device;
+    use pins::flow::model::{Mms, MmsConfig};
+    let tmp = tempfile::tempdir().unwrap();
+    let save = |name: &str, cfg: &MmsConfig, seed: u64| {
+        let dev = Device::flex();
+        dev.seed(seed);
+        let p = tmp.path().join(name);
+        pins::flow::weights::save(&p, &Mms::new(cfg, &dev), cfg).unwrap();
+        p
+    };
+    let small = MmsConfig::mms_small();
+    let (a, b) = (
+        save("a.safetensors", &small, 1),
+        save("b.safetensors", &small, 2),
+    );
+    let avg = tmp.path().join("avg.safetensors");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = ok(&pins(&["average", &s(&a), &s(&b), "--out", &s(&avg)]));
+    assert!(out.contains("2 files"), "{out}");
+    let (_, cfg) = pins::flow::weights::load(&avg, &Device::flex()).unwrap();
+    assert_eq!(cfg, small);
+    // Another network, or a single file: refused, nothing written.
+    let big = save("big.safetensors", &MmsConfig::mms(), 3);
+    let bad = tmp.path().join("bad.safetensors");
+    let err = failed(&pins(&["average", &s(&a), &s(&big), "--out", &s(&bad)]));
+    assert!(err.contains("only weights of one network"), "{err}");
+    failed(&pins(&["average", &s(&a), "--out", &s(&bad)]));
+    assert!(!bad.exists(), "a refused average left a file");
+}

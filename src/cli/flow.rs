@@ -179,6 +179,16 @@ pub(crate) struct ExportArgs {
 }
 
 #[derive(clap::Args)]
+pub(crate) struct AverageArgs {
+    /// Weights files of one network (two or more), e.g. snapshots of one training run.
+    #[arg(required = true, num_args = 2..)]
+    weights: Vec<PathBuf>,
+    /// Output weights file (.safetensors); written only when every input fits.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
 pub(crate) struct InferArgs {
     /// Weights file, or built-in weights: default (= mms-small-real, stage 5), mms-small (stage 3).
     #[arg(long, default_value = "default")]
@@ -361,6 +371,25 @@ pub(crate) fn export(a: ExportArgs) -> Result<()> {
         a.out.display(),
         config.name,
         pins::flow::weights::parameter_count(&model)
+    );
+    Ok(())
+}
+
+pub(crate) fn average(a: AverageArgs) -> Result<()> {
+    let avg = pins::flow::average::average(&a.weights)?;
+    pins::io::write_bytes_atomic(&a.out, &avg.bytes)?;
+    let steps: Vec<String> = avg
+        .steps
+        .iter()
+        .map(|s| s.map_or_else(|| "–".into(), |s| s.to_string()))
+        .collect();
+    println!(
+        "{} files (steps {}) → {} ({}, {} parameters)",
+        a.weights.len(),
+        steps.join(", "),
+        a.out.display(),
+        avg.config.name,
+        avg.parameters
     );
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! Optical flow: the MMS network (Notes S9–S11), training, export, inference, evaluation,
 //! metrics and visualisation.
 
+pub mod average;
 pub mod data;
 pub mod device;
 pub mod dis;
