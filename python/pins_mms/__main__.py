@@ -62,7 +62,10 @@ def infer(args) -> int:
     if args.onnx:
         from .onnx_export import run_onnx
 
-        flow = run_onnx(args.onnx, a[None], b[None])[0]
+        if args.iters is not None:
+            raise ValueError("--iters: an ONNX graph's iteration count is fixed at its export")
+        providers = ["CUDAExecutionProvider"] if args.device.startswith("cuda") else None
+        flow = run_onnx(args.onnx, a[None], b[None], providers)[0]
     else:
         import torch
 
