@@ -13,9 +13,11 @@
 #   scripts/train_campaign.sh status               where the campaign stands
 #   scripts/train_campaign.sh average [N]          the mean of the campaign's last N snapshots
 #                                                  (default 5; stochastic weight averaging): the
-#                                                  run's last.safetensors and the committed
-#                                                  versions of the campaign's weights in git
-#                                                  history, newest first, duplicates once, by
+#                                                  CPU sessions' snapshots (one every
+#                                                  SNAPSHOT_EVERY = 100 steps), the run's
+#                                                  last.safetensors and the committed versions
+#                                                  of the campaign's weights in git history,
+#                                                  newest first, duplicates once, by
 #                                                  `pins average` into $WORK/average.safetensors
 #
 # Where a session starts, in order: the run folder's checkpoint ($WORK/run, --resume: exactly
@@ -106,13 +108,15 @@ fi
 if [ "$mode" = average ]; then
     n=${1:-5}
     [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 2 ] || die "average: N must be an integer of at least 2, got $n"
-    git rev-parse --git-dir >/dev/null 2>&1 || die "average: the snapshots are in git history; this is no git checkout"
     mkdir -p "$WORK/snapshots"
+    mkdir -p "$WORK/history"
     candidates=()
+    # This machine's snapshots, newest first; then the run's weights; then git history.
+    while IFS= read -r f; do candidates+=("$f"); done < <(ls -r "$WORK"/snapshots/step-*.safetensors 2>/dev/null)
     if [ -f "$RUN/last.safetensors" ]; then candidates+=("$RUN/last.safetensors"); fi
-    for c in $(git log --format=%h -- "$WEIGHTS"); do
-        git show "$c:$WEIGHTS" > "$WORK/snapshots/$c.safetensors" 2>/dev/null || continue
-        candidates+=("$WORK/snapshots/$c.safetensors")
+    for c in $(git log --format=%h -- "$WEIGHTS" 2>/dev/null || true); do
+        git show "$c:$WEIGHTS" > "$WORK/history/$c.safetensors" 2>/dev/null || continue
+        candidates+=("$WORK/history/$c.safetensors")
     done
     files=()
     seen=" "
@@ -123,7 +127,8 @@ if [ "$mode" = average ]; then
         files+=("$f")
         [ "${#files[@]}" -lt "$n" ] || break
     done
-    [ "${#files[@]}" -ge 2 ] || die "average: fewer than 2 snapshots (a shallow clone has no history)"
+    [ "${#files[@]}" -ge 2 ] ||
+        die "average: fewer than 2 snapshots in $WORK/snapshots, $RUN and git history (a shallow clone has none)"
     "$PINS" average "${files[@]}" --out "$WORK/average.safetensors"
     exit 0
 fi
@@ -180,8 +185,46 @@ echo "starting: ${start[*]}"
 
 if [ "$mode" = run ]; then
     budget=${1:-2h}
-    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" \
-        "${start[@]}" --time-budget "$budget"
+    # The session runs in chunks of SNAPSHOT_EVERY steps (default 100), each resumed exactly
+    # from the last one's checkpoint and ending with the run's weights kept as a snapshot
+    # ($WORK/snapshots/step-N.safetensors) for `average`. SIGTERM or Ctrl-C ends the chunk at
+    # its next step with a checkpoint, and the session with it.
+    every=${SNAPSHOT_EVERY:-100}
+    [[ "$every" =~ ^[1-9][0-9]*$ ]] || die "SNAPSHOT_EVERY must be a positive integer, got $every"
+    seconds=$(python3 -c '
+import re, sys
+m = re.fullmatch(r"(?:(\d+)h)?(?:(\d+)m)?(?:(\d+)s)?", sys.argv[1].strip())
+total = m and sum(int(v or 0) * k for v, k in zip(m.groups(), (3600, 60, 1)))
+print(total) if total else sys.exit(1)' "$budget") ||
+        die "BUDGET $budget: expected hours, minutes and seconds such as 2h30m, 90m or 45s"
+    deadline=$(($(date +%s) + seconds))
+    mkdir -p "$WORK/snapshots"
+    stop=""
+    child=""
+    trap 'stop=1; if [ -n "$child" ]; then kill -TERM "$child" 2>/dev/null || true; fi' TERM INT
+    while [ -z "$stop" ]; do
+        left=$((deadline - $(date +%s)))
+        [ "$left" -ge 1 ] || break
+        nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" \
+            "${start[@]}" --time-budget "${left}s" --stop-after "$every" > "$WORK/chunk.log" 2>&1 &
+        child=$!
+        rc=0
+        while :; do
+            wait "$child" || rc=$?
+            kill -0 "$child" 2>/dev/null || break
+            rc=0
+        done
+        child=""
+        cat "$WORK/chunk.log"
+        [ "$rc" -eq 0 ] || die "pins train failed (exit $rc)"
+        start=(--resume)
+        step=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$RUN/checkpoint/state.json")
+        snap="$WORK/snapshots/step-$(printf %07d "$step").safetensors"
+        [ -f "$snap" ] || cp "$RUN/last.safetensors" "$snap"
+        if grep -q "stopped by\|already complete" "$WORK/chunk.log"; then break; fi
+        steps=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["steps"])' "$CONFIG")
+        [ "$step" -lt "$steps" ] || break
+    done
     status
     exit 0
 fi

@@ -337,6 +337,24 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         text.contains("starting: --continue-from") && text.contains("step 12 of 12"),
         "{text}"
     );
+    // Each chunk of the session kept a snapshot; their mean is a weights file of the network.
+    let snapshots: Vec<_> = fs::read_dir(work.join("snapshots"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        snapshots.iter().any(|f| f == "step-0000012.safetensors"),
+        "{snapshots:?}"
+    );
+    let (ok_, text) = campaign(&["average", "5"], &env, &[]);
+    let avg = work.join("average.safetensors");
+    if snapshots.len() >= 2 {
+        assert!(ok_ && text.contains("files (steps"), "{text}");
+        pins::flow::weights::load(&avg, &burn::prelude::Device::flex()).unwrap();
+    } else {
+        assert!(!ok_ && text.contains("fewer than 2 snapshots"), "{text}");
+        assert!(!avg.exists());
+    }
     // The GPU mode (here on the CPU) writes the checkpoint and weights to bring back.
     fs::remove_dir_all(work.join("run")).unwrap();
     let (ok_, text) = campaign(
