@@ -6,9 +6,10 @@
 #   scripts/gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]
 #
 # PINS is a pins binary built with `--features wgpu` (DEVICE wgpu, the default) or `cuda`.
-# OUTDIR receives at most 8 files: log.txt (this script's output), bench_live.md, and the
-# training's status.txt, state.json, model-*.bpk, optim-*.bin, log.csv and last.safetensors
-# in OUTDIR/train (continue here with CHECKPOINT=OUTDIR/train scripts/train_campaign.sh).
+# OUTDIR receives at most 8 files: log.txt (this script's output, the status included),
+# bench_live.md, and the training's state.json, model-*.bpk, optim-*.bin, log.csv,
+# last.safetensors and average.safetensors (the mean of the session's snapshots) in
+# OUTDIR/train (continue here with CHECKPOINT=OUTDIR/train scripts/train_campaign.sh).
 # The training starts where train_campaign.sh says (a checkpoint in WORK, else the campaign's
 # committed weights). Ends within SECONDS of its start, whatever the benchmark does.
 set -uo pipefail
@@ -51,7 +52,7 @@ minutes=$(((SECONDS_TOTAL - ($(date +%s) - t0) - 60) / 60))
 if [ "$minutes" -ge 1 ]; then
     say "training for $minutes min"
     PINS="$PINS" DEVICE="$DEVICE" scripts/train_campaign.sh gpu "$minutes" "$OUTDIR/train"
-    rm -f "$OUTDIR/train/best.safetensors"
+    rm -f "$OUTDIR/train/best.safetensors" "$OUTDIR/train/status.txt"
 else
     say "no time left to train"
 fi

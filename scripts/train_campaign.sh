@@ -8,17 +8,18 @@
 #   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) until MINUTES
 #                                                  (at most 9) after the script started, data
 #                                                  generation included, and copy the checkpoint,
-#                                                  weights, log and pairs/s to OUTDIR (each file
-#                                                  under 16 MiB)
+#                                                  weights, the mean of the session's snapshots,
+#                                                  log and pairs/s to OUTDIR (each file under
+#                                                  16 MiB)
 #   scripts/train_campaign.sh status               where the campaign stands
 #   scripts/train_campaign.sh average [N]          the mean of the campaign's last N snapshots
 #                                                  (default 5; stochastic weight averaging): the
-#                                                  CPU sessions' snapshots (one every
-#                                                  SNAPSHOT_EVERY = 100 steps), the run's
-#                                                  last.safetensors and the committed versions
-#                                                  of the campaign's weights in git history,
-#                                                  newest first, duplicates once, by
-#                                                  `pins average` into $WORK/average.safetensors
+#                                                  snapshots of every checkpoint on this machine
+#                                                  ($WORK/snapshots), the run's last.safetensors
+#                                                  and the committed versions of the campaign's
+#                                                  weights in git history, newest first,
+#                                                  duplicates once, by `pins average` into
+#                                                  $WORK/average.safetensors
 #
 # Where a session starts, in order: the run folder's checkpoint ($WORK/run, --resume: exactly
 # where it stopped); else a checkpoint folder brought from elsewhere (CHECKPOINT=DIR holding
@@ -183,48 +184,12 @@ else
 fi
 echo "starting: ${start[*]}"
 
+# Every checkpoint's weights are also kept as a snapshot ($WORK/snapshots/step-N.safetensors,
+# every 100 steps and every ten minutes) for `average`.
 if [ "$mode" = run ]; then
     budget=${1:-2h}
-    # The session runs in chunks of SNAPSHOT_EVERY steps (default 100), each resumed exactly
-    # from the last one's checkpoint and ending with the run's weights kept as a snapshot
-    # ($WORK/snapshots/step-N.safetensors) for `average`. SIGTERM or Ctrl-C ends the chunk at
-    # its next step with a checkpoint, and the session with it.
-    every=${SNAPSHOT_EVERY:-100}
-    [[ "$every" =~ ^[1-9][0-9]*$ ]] || die "SNAPSHOT_EVERY must be a positive integer, got $every"
-    seconds=$(python3 -c '
-import re, sys
-m = re.fullmatch(r"(?:(\d+)h)?(?:(\d+)m)?(?:(\d+)s)?", sys.argv[1].strip())
-total = m and sum(int(v or 0) * k for v, k in zip(m.groups(), (3600, 60, 1)))
-print(total) if total else sys.exit(1)' "$budget") ||
-        die "BUDGET $budget: expected hours, minutes and seconds such as 2h30m, 90m or 45s"
-    deadline=$(($(date +%s) + seconds))
-    mkdir -p "$WORK/snapshots"
-    stop=""
-    child=""
-    trap 'stop=1; if [ -n "$child" ]; then kill -TERM "$child" 2>/dev/null || true; fi' TERM INT
-    while [ -z "$stop" ]; do
-        left=$((deadline - $(date +%s)))
-        [ "$left" -ge 1 ] || break
-        nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" \
-            "${start[@]}" --time-budget "${left}s" --stop-after "$every" > "$WORK/chunk.log" 2>&1 &
-        child=$!
-        rc=0
-        while :; do
-            wait "$child" || rc=$?
-            kill -0 "$child" 2>/dev/null || break
-            rc=0
-        done
-        child=""
-        cat "$WORK/chunk.log"
-        [ "$rc" -eq 0 ] || die "pins train failed (exit $rc)"
-        start=(--resume)
-        step=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$RUN/checkpoint/state.json")
-        snap="$WORK/snapshots/step-$(printf %07d "$step").safetensors"
-        [ -f "$snap" ] || cp "$RUN/last.safetensors" "$snap"
-        if grep -q "stopped by\|already complete" "$WORK/chunk.log"; then break; fi
-        steps=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["steps"])' "$CONFIG")
-        [ "$step" -lt "$steps" ] || break
-    done
+    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" \
+        "${start[@]}" --time-budget "$budget" --snapshots "$WORK/snapshots"
     status
     exit 0
 fi
@@ -239,8 +204,10 @@ t0=$(date +%s)
 left=$((minutes * 60 - (t0 - t_script) - 30))
 [ "$left" -ge 60 ] || die "only ${left} s are left of ${minutes} min after generating the data"
 echo "training for at most ${left} s on ${DEVICE:-wgpu}"
+mkdir -p "$WORK/snapshots"
+before=" $(cd "$WORK/snapshots" && echo *.safetensors) "
 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" --device "${DEVICE:-wgpu}" \
-    "${start[@]}" --time-budget "${left}s"
+    "${start[@]}" --time-budget "${left}s" --snapshots "$WORK/snapshots"
 echo "trained for $(($(date +%s) - t0)) s on ${DEVICE:-wgpu}"
 status | tee "$outdir/status.txt"
 state="$RUN/checkpoint/state.json"
@@ -249,4 +216,13 @@ model=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["model_f
 optim=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["optimizer_file"])' "$state")
 cp "$state" "$RUN/checkpoint/$model" "$RUN/checkpoint/$optim" "$RUN/log.csv" "$RUN/last.safetensors" "$outdir/"
 if [ -f "$RUN/best.safetensors" ]; then cp "$RUN/best.safetensors" "$outdir/"; fi
+# The mean of this session's snapshots (stochastic weight averaging), where it kept two or more.
+session=()
+for f in "$WORK"/snapshots/step-*.safetensors; do
+    case "$before" in *" $(basename "$f") "*) continue ;; esac
+    [ -f "$f" ] && session+=("$f")
+done
+if [ "${#session[@]}" -ge 2 ]; then
+    "$PINS" average "${session[@]}" --out "$outdir/average.safetensors"
+fi
 ls -l "$outdir"

@@ -337,7 +337,7 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         text.contains("starting: --continue-from") && text.contains("step 12 of 12"),
         "{text}"
     );
-    // Each chunk of the session kept a snapshot; their mean is a weights file of the network.
+    // Every checkpoint kept a snapshot; their mean is a weights file of the network.
     let snapshots: Vec<_> = fs::read_dir(work.join("snapshots"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -366,6 +366,8 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
     for f in ["state.json", "last.safetensors", "log.csv", "status.txt"] {
         assert!(out.join(f).is_file(), "{f} missing: {text}");
     }
+    // Its snapshots are those of the session alone (the run was complete: none, no mean).
+    assert!(!out.join("average.safetensors").exists(), "{text}");
     // Brought back to a machine whose run folder is gone, the checkpoint continues the run.
     fs::remove_dir_all(work.join("run")).unwrap();
     let gpu_out = out.as_path();

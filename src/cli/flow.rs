@@ -163,6 +163,10 @@ pub(crate) struct TrainArgs {
     /// with --resume. The learning-rate schedule still spans the whole run.
     #[arg(long)]
     stop_after: Option<usize>,
+    /// Also keep the weights of every checkpoint in this folder (step-NNNNNNN.safetensors,
+    /// stamped): snapshots for `pins average`.
+    #[arg(long)]
+    snapshots: Option<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -320,6 +324,7 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         time_budget: a.time_budget,
         stop: Some(stop_flag()?),
         checkpoint_interval: pins::flow::train::budget::CHECKPOINT_INTERVAL,
+        snapshots: a.snapshots,
         device,
         replicas,
         progress: !a.quiet && std::io::stderr().is_terminal(),

@@ -40,6 +40,9 @@ pub struct TrainOptions {
     pub stop: Option<Arc<AtomicBool>>,
     /// Write a checkpoint when this much time has passed since the last one.
     pub checkpoint_interval: Duration,
+    /// Keep the weights of every checkpoint in this folder as `step-NNNNNNN.safetensors`
+    /// (stamped), for weight averaging ([`crate::flow::average`]).
+    pub snapshots: Option<PathBuf>,
 }
 
 /// What a run ended with.

@@ -1,6 +1,6 @@
 //! Saving a run after a step: the checkpoint (network, optimiser, and the state with the
 //! config and data fingerprints that `--resume` checks), `last.safetensors` (with its training
-//! stamp, from which `--continue-from` goes on) and the curves.
+//! stamp, from which `--continue-from` goes on), a snapshot of it where asked, and the curves.
 
 use burn::prelude::*;
 
@@ -9,10 +9,11 @@ use super::config::TrainConfig;
 use super::options::TrainOptions;
 use super::setup::{Run, record_error};
 use super::stamp::TrainingStamp;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::flow::data::DataFingerprint;
 use crate::flow::model::MmsConfig;
 use crate::flow::weights;
+use crate::io;
 
 /// Writes the checkpoint of `run` after `step` steps, its exported weights and its curves.
 pub fn save(
@@ -47,12 +48,16 @@ pub fn save(
         restart_step: run.restart,
     };
     checkpoint::write(&opts.out, &state, &model_bytes, &optim_bytes)?;
-    weights::save_with(
-        &opts.out.join("last.safetensors"),
+    let last = weights::to_bytes_with(
         &run.model.valid(),
         model_config,
         &[stamp(config, step, fingerprint).entry()?],
     )?;
+    io::write_bytes_atomic(&opts.out.join("last.safetensors"), &last)?;
+    if let Some(dir) = &opts.snapshots {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        io::write_bytes_atomic(&dir.join(format!("step-{step:07}.safetensors")), &last)?;
+    }
     run.log.plot(&opts.out.join("curves.png"))
 }
 
