@@ -1,5 +1,6 @@
 """Command line: `python -m pins_mms infer` (the network's flow for one pair, from PyTorch or an
-ONNX file) and `python -m pins_mms export` (a weights file to ONNX)."""
+ONNX file), `python -m pins_mms export` (a weights file to ONNX) and `python -m pins_mms bench`
+(the network's time on one pair)."""
 
 from __future__ import annotations
 
