@@ -62,6 +62,10 @@ def export_onnx(weights: str, out: str | Path, iters: int | None = None,
         onnx_program = torch.onnx.export(program, input_names=["image1", "image2"],
                                          output_names=["flow"], opset_version=opset, dynamo=True,
                                          optimize=False)
+    # The exporter notes each node's Python stack: 60 % of the file, dropped.
+    for node in onnx_program.model.graph:
+        node.metadata_props.clear()
+        node.doc_string = None
     onnx_program.model.producer_name = "pins_mms"
     onnx_program.model.metadata_props.update({"pins.model_config": cfg.to_json(), "pins.iters": str(iters),
                                               "pins.min_side": str(cfg.min_side)})
