@@ -167,9 +167,12 @@ pub fn read_tensors(bytes: &[u8], what: &Path) -> Result<Tensors> {
                 .ok_or_else(|| bad(format!("tensor {name}: {key} is not a list of integers")))
         };
         let (shape, offsets) = (ints("shape")?, ints("data_offsets")?);
-        let count: usize = shape.iter().product();
+        let bytes_held = shape
+            .iter()
+            .try_fold(4usize, |n, &d| n.checked_mul(d))
+            .ok_or_else(|| bad(format!("tensor {name}: shape {shape:?} too large")))?;
         let slice = match offsets[..] {
-            [a, b] if a <= b && b <= data.len() && b - a == 4 * count => &data[a..b],
+            [a, b] if a <= b && b <= data.len() && b - a == bytes_held => &data[a..b],
             _ => {
                 return Err(bad(format!(
                     "tensor {name}: data {offsets:?} does not hold {shape:?} F32 in {} bytes",
