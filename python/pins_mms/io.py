@@ -68,10 +68,16 @@ def write_flo(path: str | Path, flow: np.ndarray) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(struct.pack("<fii", FLO_MAGIC, w, h) + body)
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def publish(tmp: str | Path, path: str | Path) -> None:
+    """Renames a finished temporary file onto `path` with the permissions a new file gets
+    (mkstemp makes it private)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(tmp, 0o666 & ~mask)
+    os.replace(tmp, path)

@@ -23,6 +23,7 @@ def export_onnx(weights: str, out: str | Path, iters: int | None = None,
     the input size, else any multiple of 8 from `min_side` to 8192 is accepted."""
     import torch
 
+    from .io import publish
     from .weights import load
 
     out = Path(out)
@@ -74,8 +75,7 @@ def export_onnx(weights: str, out: str | Path, iters: int | None = None,
     os.close(fd)
     try:
         onnx_program.save(tmp, external_data=False)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, out)
+        publish(tmp, out)
     finally:
         Path(tmp).unlink(missing_ok=True)
     return out
@@ -111,9 +111,3 @@ def run_onnx(path: str | Path, image1: np.ndarray, image2: np.ndarray, providers
     b, _ = pad_to_network(image2.astype(np.float32), min_side)
     (flow,) = session.run(["flow"], {"image1": a, "image2": b})
     return flow[:, :, top:top + h, left:left + w]
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
