@@ -11,6 +11,13 @@
 #                                                  weights, the mean of the session's snapshots,
 #                                                  log and pairs/s to OUTDIR (each file under
 #                                                  16 MiB)
+#   scripts/train_campaign.sh cooldown STEPS [BUDGET]
+#                                                  cool a branch of the run down (pins train
+#                                                  --branch-from --cooldown): the learning rate
+#                                                  taken to zero over STEPS from where the run
+#                                                  stands, into $WORK/cooldown-STEP (STEP: the
+#                                                  run's step; a rerun resumes it); the run
+#                                                  itself goes on later from its own checkpoint
 #   scripts/train_campaign.sh status               where the campaign stands
 #   scripts/train_campaign.sh average [N]          the mean of the campaign's last N snapshots
 #                                                  (default 5; stochastic weight averaging): the
@@ -47,7 +54,7 @@ START=datasets/weights/mms-small-real.safetensors
 die() { echo "train_campaign: $*" >&2; exit 1; }
 mode=${1:-run}
 case "$mode" in
-    run | gpu | status | average) shift || true ;;
+    run | gpu | status | average | cooldown) shift || true ;;
     *) mode=run ;;
 esac
 
@@ -160,6 +167,27 @@ done | sort -k1,1g -k2,2 | awk '{ printf "%s %s %05d\n", $2, $3, NR - 1 }' |
 rm -rf "$MIX"
 mv "$MIX.tmp" "$MIX"
 echo "data: $(find "$MIX" -name '*_flow.flo' | wc -l) pairs in $MIX (${names[*]})"
+
+# A cool-down branches off the run where it stands (warmup–stable–decay: the run stays at its
+# schedule's rate, each branch ends at zero and is what gets scored and shipped).
+if [ "$mode" = cooldown ]; then
+    steps=${1:-}
+    [[ "$steps" =~ ^[0-9]+$ ]] && [ "$steps" -ge 1 ] ||
+        die "cooldown: STEPS must be a positive integer, got '${steps}'"
+    [ -f "$RUN/checkpoint/state.json" ] || die "cooldown: $RUN has no checkpoint to branch from"
+    at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$RUN/checkpoint/state.json")
+    branch="$WORK/cooldown-$at"
+    if [ -f "$branch/checkpoint/state.json" ]; then
+        from=(--resume)
+    else
+        from=(--branch-from "$RUN")
+    fi
+    echo "cooling down: ${from[*]} → $branch over $steps steps"
+    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$branch" \
+        "${from[@]}" --cooldown "$steps" --time-budget "${2:-2h}"
+    echo "cool-down weights: $branch/last.safetensors"
+    exit 0
+fi
 
 # Where this session starts.
 start=()

@@ -1,7 +1,8 @@
 //! Training as a campaign (Note S11): identical runs are byte-identical at any thread count; a
 //! session ends at its time budget or on SIGTERM with a checkpoint from which `--resume`
 //! continues exactly; `--continue-from` goes on from a weights file's training stamp when the
-//! checkpoint is gone; bad input is named.
+//! checkpoint is gone; a cool-down branches off a run's checkpoint and ends at a rate of zero;
+//! bad input is named.
 
 mod common;
 use common::{failed, log_column, ok, pins, pins_with_threads};
@@ -268,6 +269,117 @@ fn continue_from_goes_on_from_the_weights_stamp_with_a_warm_up() {
     assert!(!tmp.path().join("x").exists() && !tmp.path().join("y").exists());
 }
 
+#[test]
+fn a_cool_down_branches_off_the_run_and_takes_the_rate_to_zero() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = common::tiny_dataset(tmp.path(), "data", 4, 3);
+    let cfg = config(tmp.path(), 20, 1);
+    let trunk = tmp.path().join("trunk");
+    ok(&train(&cfg, &data, &trunk, &["--stop-after", "3"], None));
+    let trunk_weights = fs::read(trunk.join("last.safetensors")).unwrap();
+    let branch = tmp.path().join("branch");
+    let out = ok(&train(
+        &cfg,
+        &data,
+        &branch,
+        &["--branch-from", s(&trunk), "--cooldown", "4"],
+        None,
+    ));
+    assert!(out.contains("7 steps (7 pairs seen)"), "{out}");
+    // Stopped halfway and resumed, a cool-down ends where it ends in one go: the checkpoint
+    // keeps it, and --resume needs no --cooldown.
+    let halves = tmp.path().join("halves");
+    let first_half = [
+        "--branch-from",
+        s(&trunk),
+        "--cooldown",
+        "4",
+        "--stop-after",
+        "1",
+    ];
+    ok(&train(&cfg, &data, &halves, &first_half, None));
+    ok(&train(&cfg, &data, &halves, &["--resume"], None));
+    assert_eq!(rows(&halves), rows(&branch));
+    assert!(
+        fs::read(halves.join("last.safetensors")).unwrap()
+            == fs::read(branch.join("last.safetensors")).unwrap(),
+        "a cool-down stopped and resumed must end with the same weights"
+    );
+    let out = ok(&train(&cfg, &data, &halves, &["--resume"], None));
+    assert!(out.contains("already complete"), "{out}");
+
+    // The run itself is untouched: it stands at step 3 and goes on on its own schedule.
+    assert_eq!(state_step(&trunk), 3);
+    assert!(fs::read(trunk.join("last.safetensors")).unwrap() == trunk_weights);
+    ok(&train(
+        &cfg,
+        &data,
+        &trunk,
+        &["--resume", "--stop-after", "4"],
+        None,
+    ));
+    // The branch's log begins with the run's rows; then its rate is the run's times 1 − √t.
+    let (run_lr, branch_lr) = (log_column(&trunk, 1), log_column(&branch, 1));
+    assert_eq!(branch_lr.len(), 7);
+    assert_eq!(branch_lr[..3], run_lr[..3]);
+    for (k, step) in (4..=7).enumerate() {
+        let want = run_lr[step - 1] * (1.0 - (k as f64 / 4.0).sqrt());
+        let got = branch_lr[step - 1];
+        assert!(
+            (got / want - 1.0).abs() < 1e-5,
+            "step {step}: {got} against {want}"
+        );
+    }
+    // The branch's first step is the run's own step 4 (the same rate); they part after it.
+    let (run_loss, branch_loss) = (log_column(&trunk, 2), log_column(&branch, 2));
+    assert_eq!(branch_loss[3], run_loss[3]);
+    assert_ne!(branch_loss[6], run_loss[6]);
+
+    // Its weights stand off the run's schedule: a warm restart from them is refused.
+    let err = failed(&train(
+        &cfg,
+        &data,
+        &tmp.path().join("x"),
+        &["--continue-from", s(&branch.join("last.safetensors"))],
+        None,
+    ));
+    assert!(
+        err.contains("cool-down (steps 3–7)") && err.contains("--init"),
+        "{err}"
+    );
+    // A cool-down longer than what is left, another length on resume, a new run, a missing
+    // run and an occupied folder are named, and leave no folder.
+    let none = tmp.path().join("none");
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["--branch-from", s(&trunk), "--cooldown", "30"],
+            "at most 13 are left",
+        ),
+        (
+            &["--resume", "--cooldown", "2"],
+            "cooling down over 4 steps",
+        ),
+        (&["--cooldown", "2"], "needs a run to cool down"),
+        (
+            &["--branch-from", s(&none), "--cooldown", "2"],
+            "no checkpoint to branch from",
+        ),
+        (&["--branch-from", s(&trunk)], "already holds a run"),
+    ];
+    for (i, (extra, want)) in cases.iter().enumerate() {
+        let out_dir = match i {
+            1 | 4 => branch.clone(),
+            _ => tmp.path().join(format!("refused{i}")),
+        };
+        let err = failed(&train(&cfg, &data, &out_dir, extra, None));
+        assert!(err.contains(want), "{extra:?}: {err}");
+        assert!(
+            !tmp.path().join(format!("refused{i}")).exists(),
+            "{extra:?}"
+        );
+    }
+}
+
 /// Runs `scripts/train_campaign.sh ARGS` with the test's binary and `env`; (success, stdout +
 /// stderr).
 fn campaign(args: &[&str], env: &[(&str, &Path)], extra: &[(&str, &str)]) -> (bool, String) {
@@ -327,6 +439,25 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         "{text}"
     );
     assert!(text.contains("stopped by its time budget"), "{text}");
+    // A cool-down branches off where the run stands; a rerun resumes the branch.
+    let (ok_, text) = campaign(&["cooldown", "2"], &env, &[]);
+    assert!(
+        ok_ && text.contains("cooling down: --branch-from"),
+        "{text}"
+    );
+    let at = state_step(&work.join("run"));
+    let branch = work.join(format!("cooldown-{at}"));
+    assert_eq!(state_step(&branch), at + 2, "{text}");
+    let (ok_, text) = campaign(&["cooldown", "2"], &env, &[]);
+    assert!(
+        ok_ && text.contains("--resume") && text.contains("already complete"),
+        "{text}"
+    );
+    let (ok_, text) = campaign(&["cooldown", "x"], &env, &[]);
+    assert!(
+        !ok_ && text.contains("STEPS must be a positive integer"),
+        "{text}"
+    );
     // Its weights committed, its checkpoint lost: a warm restart from the weights.
     let weights = c.join("weights.safetensors");
     fs::copy(work.join("run/last.safetensors"), &weights).unwrap();

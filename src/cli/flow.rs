@@ -167,6 +167,15 @@ pub(crate) struct TrainArgs {
     /// stamped): snapshots for `pins average`.
     #[arg(long)]
     snapshots: Option<PathBuf>,
+    /// Start --out as a branch of the run in this folder: its last checkpoint (weights,
+    /// optimiser state, step, config, data order) is the branch's first; the run is untouched.
+    #[arg(long, conflicts_with_all = ["resume", "init", "continue_from"])]
+    branch_from: Option<PathBuf>,
+    /// Cool down: take the learning rate to zero over this many steps (1 − √t of the
+    /// schedule's rate) from where the run stands, and end there. With --branch-from (the run
+    /// goes on elsewhere: a warmup–stable–decay campaign) or --resume (this run ends).
+    #[arg(long, conflicts_with_all = ["init", "continue_from"])]
+    cooldown: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -325,6 +334,8 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         stop: Some(stop_flag()?),
         checkpoint_interval: pins::flow::train::budget::CHECKPOINT_INTERVAL,
         snapshots: a.snapshots,
+        branch_from: a.branch_from,
+        cooldown: a.cooldown,
         device,
         replicas,
         progress: !a.quiet && std::io::stderr().is_terminal(),

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::config::TrainConfig;
+use super::cooldown::Cooldown;
 use crate::error::{Error, Result};
 use crate::flow::data::DataFingerprint;
 use crate::io;
@@ -36,6 +37,9 @@ pub struct CheckpointState {
     /// whose learning-rate warm-up a resume must repeat.
     #[serde(default)]
     pub restart_step: Option<usize>,
+    /// The cool-down the run ends with, if it has one (a resume keeps it).
+    #[serde(default)]
+    pub cooldown: Option<Cooldown>,
 }
 
 /// SHA-256 (hex) of a config's JSON, the key order being the struct's.

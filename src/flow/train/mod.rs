@@ -4,6 +4,7 @@ pub mod budget;
 pub mod checkpoint;
 pub mod clip;
 pub mod config;
+pub mod cooldown;
 pub mod log;
 pub mod options;
 pub mod param_ids;

@@ -43,6 +43,12 @@ pub struct TrainOptions {
     /// Keep the weights of every checkpoint in this folder as `step-NNNNNNN.safetensors`
     /// (stamped), for weight averaging ([`crate::flow::average`]).
     pub snapshots: Option<PathBuf>,
+    /// Start `out` as a branch of the run in this folder: its checkpoint (weights, optimiser
+    /// state, step, config, data order) copied, the run itself untouched.
+    pub branch_from: Option<PathBuf>,
+    /// Take the learning rate down to zero over this many steps from where the run (or the
+    /// branch) stands, and end there ([`super::cooldown`]).
+    pub cooldown: Option<usize>,
 }
 
 /// What a run ended with.

@@ -1,10 +1,13 @@
 //! Resuming a run (Note S11 training in chunks): the run's config — the checkpoint's own, a
 //! given one must equal it (each differing setting named) and `--steps` cannot change its
 //! schedule — and its data, whose fingerprint must be the checkpoint's; a run that has taken
-//! all its steps is reported as complete.
+//! all its steps is reported as complete. A branch (`--branch-from`) starts a new folder from
+//! another run's checkpoint, as a resume would; a cool-down ([`super::cooldown`]) is fixed when
+//! it starts and kept by every resume after.
 
-use super::checkpoint::{self, CheckpointState};
+use super::checkpoint::{self, CheckpointState, Loaded};
 use super::config::TrainConfig;
+use super::cooldown::Cooldown;
 use super::options::{TrainOptions, TrainSummary};
 use crate::error::{Error, Result};
 use crate::flow::data::DataFingerprint;
@@ -20,7 +23,8 @@ pub fn run_config(
     stored: Option<&CheckpointState>,
     opts: &TrainOptions,
 ) -> Result<(TrainConfig, usize)> {
-    let (mut config, start) = match (stored, opts.resume) {
+    let resuming = opts.resume || opts.branch_from.is_some();
+    let (mut config, start) = match (stored, resuming) {
         (Some(state), true) => {
             if let Some(given) = &given {
                 refuse_other_config(&state.config, given, opts)?;
@@ -45,7 +49,7 @@ pub fn run_config(
         (None, false) => (given.unwrap_or_default(), 0),
     };
     if let Some(s) = opts.steps {
-        if opts.resume && s != config.steps {
+        if resuming && s != config.steps {
             return Err(Error::invalid(
                 "--steps",
                 format!(
@@ -58,6 +62,80 @@ pub fn run_config(
     }
     config.validate()?;
     Ok((config, start))
+}
+
+/// The checkpoint a session starts from: that of the run in `--out`, or for a branch that of
+/// the run it branches from (`--out` must then hold no run yet).
+pub fn existing(opts: &TrainOptions) -> Result<Option<Loaded>> {
+    let Some(trunk) = &opts.branch_from else {
+        return checkpoint::read(&opts.out);
+    };
+    let conflict = [
+        ("--resume", opts.resume),
+        ("--init", opts.init.is_some()),
+        ("--continue-from", opts.continue_from.is_some()),
+    ]
+    .into_iter()
+    .find(|(_, given)| *given);
+    if let Some((flag, _)) = conflict {
+        return Err(Error::invalid(
+            "--branch-from",
+            format!("cannot be combined with {flag} (the branch starts from the run's checkpoint)"),
+        ));
+    }
+    if checkpoint::dir(&opts.out).join("state.json").exists() {
+        return Err(Error::invalid(
+            "--out",
+            format!(
+                "{} already holds a run; a branch starts in a new folder (continue this one \
+                 with --resume)",
+                opts.out.display()
+            ),
+        ));
+    }
+    match checkpoint::read(trunk)? {
+        Some(loaded) => Ok(Some(loaded)),
+        None => Err(Error::invalid(
+            "--branch-from",
+            format!("{} has no checkpoint to branch from", trunk.display()),
+        )),
+    }
+}
+
+/// The cool-down a session trains under: the checkpoint's (a resume keeps it; `--cooldown`
+/// may repeat it but not change it), or a new one of `--cooldown` steps from `start`, the
+/// step the run stands at. Only a run with a checkpoint behind it cools down (a resume or a
+/// branch): a new run has no stable phase to end.
+pub fn cooldown(
+    stored: Option<&CheckpointState>,
+    config: &TrainConfig,
+    start: usize,
+    opts: &TrainOptions,
+) -> Result<Option<Cooldown>> {
+    let kept = stored.and_then(|s| s.cooldown);
+    match (kept, opts.cooldown) {
+        (kept, None) => Ok(kept),
+        (Some(c), Some(n)) if c.steps == n => Ok(Some(c)),
+        (Some(c), Some(n)) => Err(Error::invalid(
+            "--cooldown",
+            format!(
+                "the run in {} is cooling down over {} steps from step {}; it cannot change \
+                 to {n}",
+                opts.out.display(),
+                c.steps,
+                c.start
+            ),
+        )),
+        (None, Some(n)) => {
+            if stored.is_none() || !(opts.resume || opts.branch_from.is_some()) {
+                return Err(Error::invalid(
+                    "--cooldown",
+                    "needs a run to cool down: --resume (this run) or --branch-from RUN",
+                ));
+            }
+            Cooldown::new(start, n, config.steps).map(Some)
+        }
+    }
 }
 
 /// Refuses to resume on data other than the run's (when the checkpoint recorded its

@@ -6,6 +6,7 @@ use burn::prelude::*;
 
 use super::checkpoint::{self, CheckpointState};
 use super::config::TrainConfig;
+use super::cooldown::Cooldown;
 use super::options::TrainOptions;
 use super::setup::{Run, record_error};
 use super::stamp::TrainingStamp;
@@ -46,12 +47,13 @@ pub fn save(
         last_loss: run.last_loss,
         train_seconds: run.seconds,
         restart_step: run.restart,
+        cooldown: run.cooldown,
     };
     checkpoint::write(&opts.out, &state, &model_bytes, &optim_bytes)?;
     let last = weights::to_bytes_with(
         &run.model.valid(),
         model_config,
-        &[stamp(config, step, fingerprint).entry()?],
+        &[stamp(config, step, fingerprint, run.cooldown).entry()?],
     )?;
     io::write_bytes_atomic(&opts.out.join("last.safetensors"), &last)?;
     if let Some(dir) = &opts.snapshots {
@@ -61,13 +63,20 @@ pub fn save(
     run.log.plot(&opts.out.join("curves.png"))
 }
 
-/// The training stamp of a run's weights after `step` steps on the data of `fingerprint`.
-pub fn stamp(config: &TrainConfig, step: usize, fingerprint: &DataFingerprint) -> TrainingStamp {
+/// The training stamp of a run's weights after `step` steps on the data of `fingerprint`, in
+/// its cool-down if it has one.
+pub fn stamp(
+    config: &TrainConfig,
+    step: usize,
+    fingerprint: &DataFingerprint,
+    cooldown: Option<Cooldown>,
+) -> TrainingStamp {
     TrainingStamp {
         step,
         steps: config.steps,
         pairs_seen: (step * config.batch_size) as u64,
         config: config.clone(),
         data: fingerprint.clone(),
+        cooldown,
     }
 }

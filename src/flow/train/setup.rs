@@ -10,6 +10,7 @@ use burn::tensor::Bytes;
 
 use super::checkpoint::Loaded;
 use super::config::TrainConfig;
+use super::cooldown::Cooldown;
 use super::log::TrainLog;
 use super::options::TrainOptions;
 use crate::error::{Error, Result};
@@ -35,6 +36,8 @@ pub struct Run {
     /// The step of a warm restart (`--continue-from`), whose learning-rate warm-up the
     /// schedule applies (kept by checkpoints, so a resumed run repeats it).
     pub restart: Option<usize>,
+    /// The cool-down the run ends with ([`super::cooldown`]), kept by its checkpoints.
+    pub cooldown: Option<Cooldown>,
 }
 
 /// Where a new run's schedule starts when it continues from a weights file alone: the
@@ -106,7 +109,15 @@ pub fn start(
             .unwrap_or_default()
             .as_bytes(),
     )?;
-    let log = TrainLog::open(&opts.out.join("log.csv"), start)?;
+    let log_path = opts.out.join("log.csv");
+    if let Some(trunk) = &opts.branch_from {
+        // A branch's curves begin with its run's.
+        let from = trunk.join("log.csv");
+        if from.is_file() && !log_path.exists() {
+            std::fs::copy(&from, &log_path).map_err(|e| Error::io(&from, e))?;
+        }
+    }
+    let log = TrainLog::open(&log_path, start)?;
     let parameters = weights::parameter_count(&model);
     Ok(Run {
         device,
@@ -119,6 +130,7 @@ pub fn start(
         log,
         parameters,
         restart,
+        cooldown: None,
     })
 }
 

@@ -9,6 +9,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::config::TrainConfig;
+use super::cooldown::Cooldown;
 use crate::error::{Error, Result};
 use crate::flow::data::DataFingerprint;
 use crate::flow::weights;
@@ -31,6 +32,10 @@ pub struct TrainingStamp {
     pub config: TrainConfig,
     /// The training data's fingerprint (pairs, and a hash of their names and sizes).
     pub data: DataFingerprint,
+    /// The cool-down these weights come from, if any: they stand off the run's own schedule,
+    /// which goes on from its checkpoint, not from them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cooldown: Option<Cooldown>,
 }
 
 impl TrainingStamp {
@@ -60,6 +65,19 @@ impl TrainingStamp {
         data: &DataFingerprint,
         what: &Path,
     ) -> Result<usize> {
+        if let Some(c) = self.cooldown {
+            return Err(Error::invalid(
+                "--continue-from",
+                format!(
+                    "{} comes from a cool-down (steps {}–{}), off the run's schedule: a warm \
+                     restart continues the run from its own weights; use --init to fine-tune \
+                     from these",
+                    what.display(),
+                    c.start,
+                    c.end()
+                ),
+            ));
+        }
         let diffs = super::checkpoint::config_differences(&self.config, config);
         if !diffs.is_empty() {
             return Err(Error::invalid(
@@ -145,6 +163,7 @@ mod tests {
                 pairs: 10,
                 sha256: "ab".repeat(32),
             },
+            cooldown: None,
         };
         let data = stamp.data.clone();
         let p = Path::new("w.safetensors");
@@ -182,5 +201,15 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("nothing is left"), "{err}");
+        let cooled = TrainingStamp {
+            step: 800,
+            cooldown: Some(Cooldown::new(700, 100, config.steps).unwrap()),
+            ..done
+        };
+        let err = cooled
+            .restart_step(&config, &data, p)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("cool-down (steps 700–800)"), "{err}");
     }
 }

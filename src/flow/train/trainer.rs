@@ -6,7 +6,8 @@
 //! `--time-budget` (the last ones' durations are the estimate), or at the
 //! step after a stop request (SIGTERM), each time with a checkpoint; one is written at least
 //! every ten minutes besides. `--continue-from` goes on from a weights file's training stamp
-//! when the checkpoint is gone (a warm restart, [`super::stamp`]).
+//! when the checkpoint is gone (a warm restart, [`super::stamp`]); `--cooldown` ends a run, or a
+//! branch of it (`--branch-from`), by taking the rate to zero ([`super::cooldown`]).
 //!
 //! This file is the loop; its parts are [`super::resume`] (the run's config and the checks
 //! against a checkpoint), [`super::setup`] (network, optimiser, run folder), [`super::step`],
@@ -19,7 +20,6 @@ use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::budget::Budget;
-use super::checkpoint;
 use super::config::TrainConfig;
 use super::log::LogRow;
 use super::options::{TrainOptions, TrainSummary};
@@ -27,6 +27,7 @@ use super::prefetch::Prefetch;
 use super::schedule::one_cycle;
 use super::setup::WarmRestart;
 use super::stamp::{TrainingStamp, restart_factor};
+use super::{checkpoint, cooldown};
 use super::{resume, save, setup, step, validate};
 use crate::error::{Error, Result};
 use crate::flow::data::{DataFingerprint, FlowDataset};
@@ -35,8 +36,11 @@ use crate::flow::data::{DataFingerprint, FlowDataset};
 /// one when resuming (`None` then means "the stored one"), the defaults when `None` on a new run.
 pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSummary> {
     let budget = Budget::new(opts.time_budget, opts.stop.clone());
-    let existing = checkpoint::read(&opts.out)?;
+    let existing = resume::existing(opts)?;
     let (config, mut start) = resume::run_config(config, existing.as_ref().map(|e| &e.0), opts)?;
+    let cooldown = resume::cooldown(existing.as_ref().map(|e| &e.0), &config, start, opts)?;
+    // Where the run ends: its schedule's last step, or its cool-down's.
+    let end = cooldown.map_or(config.steps, |c| c.end());
     let model_config = config.model_config()?;
     let dataset = FlowDataset::open(&opts.data)?;
     let fingerprint = dataset.fingerprint()?;
@@ -46,7 +50,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     }
     if let Some((state, _, _)) = &existing {
         resume::refuse_other_data(state, &fingerprint, opts)?;
-        if start >= config.steps {
+        if start >= end {
             return Ok(resume::already_complete(state, &model_config));
         }
     }
@@ -54,6 +58,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     let (train_set, val_set) = dataset.split(config.val_fraction);
     setup::check_crop(&train_set, &config, opts)?;
     let mut run = setup::start(&config, &model_config, existing, warm, start, opts)?;
+    run.cooldown = cooldown;
 
     let devices: Vec<Device> = std::iter::once(run.device.clone())
         .chain(opts.replicas.iter().map(|d| d.clone().autodiff()))
@@ -69,11 +74,9 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             ),
         ));
     }
-    let bar = progress_bar(opts.progress, config.steps, start);
+    let bar = progress_bar(opts.progress, end, start);
     let mut step = start;
-    let stop = opts
-        .stop_after
-        .map_or(config.steps, |n| (start + n).min(config.steps));
+    let stop = opts.stop_after.map_or(end, |n| (start + n).min(end));
     let mut batches = Prefetch::new(&config, &train_set, step, stop, Prefetch::default_depth());
     let (mut saved_at, mut last_save) = (step, Instant::now());
     let (mut last_step, mut last_validation) = (Duration::ZERO, Duration::ZERO);
@@ -83,7 +86,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     let (mut steps_here, mut validations_here) = (0usize, 0usize);
     let mut stopped = None;
     while step < stop {
-        let validates = (step + 1) % config.val_every == 0 || step + 1 == config.steps;
+        let validates = (step + 1) % config.val_every == 0 || step + 1 == end;
         let expected = |last: Duration, done: usize| if done > 1 { last } else { Duration::ZERO };
         let next = expected(last_step, steps_here)
             + if validates {
@@ -97,7 +100,8 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         }
         let t0 = Instant::now();
         let lr = one_cycle(step, config.steps, config.lr, config.pct_start)
-            * restart_factor(step, run.restart, config.restart_warmup);
+            * restart_factor(step, run.restart, config.restart_warmup)
+            * cooldown::factor(step, run.cooldown);
         let examples = batches.take(step)?;
         let (model, stats) = match step::take_parallel(
             run.model,
@@ -135,7 +139,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         };
         if validates {
             let t_val = Instant::now();
-            let stamp = save::stamp(&config, step, &fingerprint);
+            let stamp = save::stamp(&config, step, &fingerprint, run.cooldown);
             let scores = validate::validate(
                 &run.model,
                 &model_config,
@@ -161,7 +165,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         ));
         bar.set_position(step as u64);
         if step % config.checkpoint_every == 0
-            || step == config.steps
+            || step == end
             || step == stop
             || last_save.elapsed() >= opts.checkpoint_interval
         {
