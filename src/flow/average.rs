@@ -133,17 +133,7 @@ fn add(
 /// The F32 tensors of safetensors `bytes`; non-finite values and other types are errors.
 pub fn read_tensors(bytes: &[u8], what: &Path) -> Result<Tensors> {
     let bad = |r: String| Error::format(what, format!("not a pins weights file: {r}"));
-    let n = bytes
-        .get(..8)
-        .and_then(|b| b.try_into().ok())
-        .map(u64::from_le_bytes)
-        .ok_or_else(|| bad("shorter than a safetensors header".into()))? as usize;
-    let header = bytes
-        .get(8..8usize.saturating_add(n))
-        .ok_or_else(|| bad(format!("header of {n} bytes in a file of {}", bytes.len())))?;
-    let data = &bytes[8 + n..];
-    let header: BTreeMap<String, serde_json::Value> =
-        serde_json::from_slice(header).map_err(|e| bad(format!("header JSON: {e}")))?;
+    let (header, data) = weights::split_header(bytes, what)?;
     let mut out = Tensors::new();
     for (name, entry) in header {
         if name == "__metadata__" {

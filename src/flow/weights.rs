@@ -58,17 +58,7 @@ pub fn canonical_safetensors(bytes: &[u8]) -> Result<Vec<u8>> {
     use serde_json::{Map, Value};
     use std::collections::BTreeMap;
     let bad = |r: &str| Error::invalid("weights", format!("cannot canonicalise safetensors: {r}"));
-    let n = bytes
-        .get(..8)
-        .and_then(|b| b.try_into().ok())
-        .map(u64::from_le_bytes)
-        .ok_or_else(|| bad("no header"))? as usize;
-    let header = bytes
-        .get(8..8usize.saturating_add(n))
-        .ok_or_else(|| bad("header"))?;
-    let data = &bytes[8 + n..];
-    let header: BTreeMap<String, Value> =
-        serde_json::from_slice(header).map_err(|e| bad(&e.to_string()))?;
+    let (header, data) = split_header(bytes, Path::new("weights in memory"))?;
     let mut out_header = Map::new();
     let mut out_data = Vec::with_capacity(data.len());
     for (name, entry) in header {
@@ -140,24 +130,36 @@ pub fn read_config(bytes: &[u8], what: &Path) -> Result<MmsConfig> {
 
 /// The text stored under `key` in a safetensors header's metadata, if any.
 pub fn read_metadata(bytes: &[u8], what: &Path, key: &str) -> Result<Option<String>> {
-    let bad = |r: String| Error::format(what, format!("not a pins weights file: {r}"));
-    if bytes.len() < 8 {
-        return Err(bad("shorter than a safetensors header".into()));
-    }
-    let n = u64::from_le_bytes(bytes[..8].try_into().map_err(|_| bad("header".into()))?) as usize;
-    if n > 100 << 20 || 8 + n > bytes.len() {
-        return Err(bad(format!(
-            "header of {n} bytes in a file of {}",
-            bytes.len()
-        )));
-    }
-    let header: serde_json::Value =
-        serde_json::from_slice(&bytes[8..8 + n]).map_err(|e| bad(format!("header JSON: {e}")))?;
+    let (header, _) = split_header(bytes, what)?;
     Ok(header
         .get("__metadata__")
         .and_then(|m| m.get(key))
         .and_then(|v| v.as_str())
         .map(str::to_string))
+}
+
+/// A safetensors header: its entries by name (`__metadata__` among them).
+pub type Header = std::collections::BTreeMap<String, serde_json::Value>;
+
+/// A safetensors file's header (entries by name, `__metadata__` among them) and the data after
+/// it: the one reader of the format's framing (an 8-byte little-endian length, then that many
+/// bytes of JSON). A short file, a length past the end and bad JSON are named errors.
+pub fn split_header<'a>(bytes: &'a [u8], what: &Path) -> Result<(Header, &'a [u8])> {
+    let bad = |r: String| Error::format(what, format!("not a pins weights file: {r}"));
+    let n = bytes
+        .get(..8)
+        .and_then(|b| b.try_into().ok())
+        .map(u64::from_le_bytes)
+        .ok_or_else(|| bad("shorter than a safetensors header".into()))?;
+    let end = usize::try_from(n)
+        .ok()
+        .filter(|&n| n <= 100 << 20)
+        .and_then(|n| n.checked_add(8))
+        .filter(|&end| end <= bytes.len())
+        .ok_or_else(|| bad(format!("header of {n} bytes in a file of {}", bytes.len())))?;
+    let header =
+        serde_json::from_slice(&bytes[8..end]).map_err(|e| bad(format!("header JSON: {e}")))?;
+    Ok((header, &bytes[end..]))
 }
 
 /// Builds the network described by the bytes' config on `device` and loads its weights. Every
