@@ -282,6 +282,10 @@ fn bad_input_fails_clearly_without_output() {
         (r#"{"camera": {"noise": {"a": -0.2}}}"#, "noise.a"),
         (r#"{"scene": {"kind": "chairs", "width": 0}}"#, "size"),
         (r#"{"camera": {"psf": "/no/such/psf.png"}}"#, "psf.png"),
+        (
+            r#"{"scene": {"kind": "chairs", "photos": {"dirs": ["no_such_photos"]}}}"#,
+            "no_such_photos",
+        ),
     ] {
         let cfg = write_config(t, "bad.json", json);
         let err = failed(&pins(

@@ -112,6 +112,14 @@ impl Generator {
         let (psf, psf_description) = psf_source::load(&config.camera.psf)?;
         let camera = Camera::new(&config.camera, psf)?;
         let (pairs, total) = match &config.scene {
+            SceneSpec::Chairs(chairs) => {
+                // The photographs are read now, so that a missing or empty folder is refused
+                // before any output folder is claimed.
+                if let Some(photos) = &chairs.photos {
+                    photos.library()?;
+                }
+                (Vec::new(), config.count)
+            }
             SceneSpec::Dataset { path, layout } => {
                 let pairs = discover(path, *layout)?;
                 let total = config.count.min(pairs.len());
