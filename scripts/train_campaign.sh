@@ -25,7 +25,9 @@
 #                                                  ($WORK/snapshots), the run's last.safetensors
 #                                                  and the committed versions of the campaign's
 #                                                  weights in git history, newest first,
-#                                                  duplicates once, by `pins average` into
+#                                                  duplicates once, only those of the newest
+#                                                  one's run (config and data in the training
+#                                                  stamp; no cool-downs), by `pins average` into
 #                                                  $WORK/average.safetensors
 #
 # Where a session starts, in order: the run folder's checkpoint ($WORK/run, --resume: exactly
@@ -126,12 +128,32 @@ if [ "$mode" = average ]; then
         git show "$c:$WEIGHTS" > "$WORK/history/$c.safetensors" 2>/dev/null || continue
         candidates+=("$WORK/history/$c.safetensors")
     done
+    # Only weights of the newest file's run: the same config and data in their training stamp,
+    # and none of a cool-down (an earlier campaign, or a branch, is another run).
+    run_of() {
+        python3 - "$1" <<'PY'
+import json, struct, sys
+try:
+    b = open(sys.argv[1], "rb").read()
+    n = struct.unpack("<Q", b[:8])[0]
+    st = json.loads(json.loads(b[8:8 + n]).get("__metadata__", {}).get("pins.training") or "null")
+except Exception:
+    st = None
+if st and not st.get("cooldown"):
+    print(json.dumps([st["config"], st["data"]], sort_keys=True))
+PY
+    }
     files=()
     seen=" "
+    run=""
     for f in "${candidates[@]}"; do
         sum=$(sha256sum "$f" | cut -d' ' -f1)
         case "$seen" in *" $sum "*) continue ;; esac
         seen+="$sum "
+        this=$(run_of "$f")
+        [ -n "$this" ] || continue
+        [ -n "$run" ] || run=$this
+        [ "$this" = "$run" ] || continue
         files+=("$f")
         [ "${#files[@]}" -lt "$n" ] || break
     done
