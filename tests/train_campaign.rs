@@ -286,6 +286,9 @@ fn a_cool_down_branches_off_the_run_and_takes_the_rate_to_zero() {
         None,
     ));
     assert!(out.contains("7 steps (7 pairs seen)"), "{out}");
+    // Its best weights are its own: the first validation after the branch writes them.
+    let best = stamp_step(&branch.join("best.safetensors"));
+    assert!((4..=7).contains(&best), "best.safetensors from step {best}");
     // Stopped halfway and resumed, a cool-down ends where it ends in one go: the checkpoint
     // keeps it, and --resume needs no --cooldown.
     let halves = tmp.path().join("halves");

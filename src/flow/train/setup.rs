@@ -96,7 +96,9 @@ pub fn start(
         optim = optim
             .from_bytes(Bytes::from_bytes_vec(optim_bytes))
             .map_err(|e| record_error("checkpoint optimiser", e))?;
-        best_val = state.best_val_epe;
+        // A branch (`--branch-from`) validates on its own: its best.safetensors is one of its
+        // steps, not a score of the run it left.
+        best_val = state.best_val_epe.filter(|_| opts.branch_from.is_none());
         seconds = state.train_seconds;
         last_loss = state.last_loss;
         restart = state.restart_step;
