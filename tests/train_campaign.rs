@@ -420,7 +420,7 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
     fs::create_dir_all(c.join("data")).unwrap();
     fs::write(
         c.join("train.json"),
-        r#"{"model": "mms-small", "steps": 12, "batch_size": 1, "crop": [64, 64], "iters": 2,
+        r#"{"model": "mms-small", "steps": 100, "batch_size": 1, "crop": [64, 64], "iters": 2,
             "val_fraction": 0.25, "val_every": 4, "val_max_pairs": 1, "val_iters": 2,
             "checkpoint_every": 1000, "restart_warmup": 2}"#,
     )
@@ -442,21 +442,34 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         "{text}"
     );
     assert!(text.contains("stopped by its time budget"), "{text}");
-    // A cool-down branches off where the run stands; a rerun resumes the branch.
-    let (ok_, text) = campaign(&["cooldown", "2"], &env, &[]);
+    // A cool-down branches off where the run stands; a rerun resumes the branch. (On a run
+    // stopped after 3 steps in a folder of its own, whatever this machine's speed.)
+    let work2 = tmp.path().join("work2");
+    ok(&pins(&[
+        "train",
+        "--config",
+        s(&c.join("train.json")),
+        "--data",
+        s(&work.join("mix")),
+        "--out",
+        s(&work2.join("run")),
+        "--stop-after",
+        "3",
+        "--quiet",
+    ]));
+    let env2 = [("CAMPAIGN", c.as_path()), ("WORK", work2.as_path())];
+    let (ok_, text) = campaign(&["cooldown", "2"], &env2, &[]);
     assert!(
         ok_ && text.contains("cooling down: --branch-from"),
         "{text}"
     );
-    let at = state_step(&work.join("run"));
-    let branch = work.join(format!("cooldown-{at}"));
-    assert_eq!(state_step(&branch), at + 2, "{text}");
-    let (ok_, text) = campaign(&["cooldown", "2"], &env, &[]);
+    assert_eq!(state_step(&work2.join("cooldown-3")), 5, "{text}");
+    let (ok_, text) = campaign(&["cooldown", "2"], &env2, &[]);
     assert!(
         ok_ && text.contains("--resume") && text.contains("already complete"),
         "{text}"
     );
-    let (ok_, text) = campaign(&["cooldown", "x"], &env, &[]);
+    let (ok_, text) = campaign(&["cooldown", "x"], &env2, &[]);
     assert!(
         !ok_ && text.contains("STEPS must be a positive integer"),
         "{text}"
@@ -468,7 +481,7 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
     let (ok_, text) = campaign(&["run", "1h"], &env, &[]);
     assert!(ok_, "{text}");
     assert!(
-        text.contains("starting: --continue-from") && text.contains("step 12 of 12"),
+        text.contains("starting: --continue-from") && text.contains("step 100 of 100"),
         "{text}"
     );
     // Every checkpoint kept a snapshot; their mean is a weights file of the network.
@@ -477,7 +490,7 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert!(
-        snapshots.iter().any(|f| f == "step-0000012.safetensors"),
+        snapshots.iter().any(|f| f == "step-0000100.safetensors"),
         "{snapshots:?}"
     );
     let (ok_, text) = campaign(&["average", "5"], &env, &[]);
