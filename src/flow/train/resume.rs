@@ -127,7 +127,8 @@ pub fn cooldown(
             ),
         )),
         (None, Some(n)) => {
-            if stored.is_none() || !(opts.resume || opts.branch_from.is_some()) {
+            // With a checkpoint, `run_config` has already required --resume or --branch-from.
+            if stored.is_none() {
                 return Err(Error::invalid(
                     "--cooldown",
                     "needs a run to cool down: --resume (this run) or --branch-from RUN",
@@ -157,7 +158,7 @@ pub fn refuse_other_data(
             "the run in {} was trained on {} ({} pairs, fingerprint {}), but {} holds {} \
              pairs (fingerprint {}): resuming on other data would silently change the run; \
              start a new run (--init with its weights to fine-tune)",
-            opts.out.display(),
+            opts.branch_from.as_ref().unwrap_or(&opts.out).display(),
             state.data.display(),
             stored.pairs,
             &stored.sha256[..12.min(stored.sha256.len())],
