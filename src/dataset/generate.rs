@@ -151,6 +151,53 @@ impl Generator {
         sample_seed(self.config.seed, index)
     }
 
+    /// The bit depth of the written images.
+    fn file_depth(&self) -> BitDepth {
+        if self.config.camera.bit_depth == 16 {
+            BitDepth::Sixteen
+        } else {
+            BitDepth::Eight
+        }
+    }
+
+    /// Frame `k` (0 or 1) of a sample with seed `seed` through the camera, its noise drawn
+    /// from the frame's own stream.
+    fn observe(&self, clean: &Image, seed: u64, k: usize) -> Result<Image> {
+        let purpose = [rng::purpose::NOISE_FRAME1, rng::purpose::NOISE_FRAME2][k];
+        self.camera.apply(clean, rng::derive(seed, &[purpose]))
+    }
+
+    /// Sample `index` made in memory, as its files would read back: both frames through the
+    /// camera and quantised to the file's bit depth, and the flow (`None` for a still pattern
+    /// or a dataset pair without flow). Nothing is written; the bytes equal a written
+    /// sample's.
+    pub fn pair(&self, index: usize) -> Result<(Image, Image, Option<Flow>)> {
+        if matches!(self.config.scene, SceneSpec::Dataset { .. }) && index >= self.total {
+            return Err(Error::invalid(
+                "sample index",
+                format!("{index} is past the dataset's {} pairs", self.total),
+            ));
+        }
+        let seed = self.sample_seed(index);
+        let r = self.render(index, seed)?;
+        let bits = match self.file_depth() {
+            BitDepth::Eight => 8,
+            BitDepth::Sixteen => 16,
+        };
+        let [a, b] = [0, 1].map(|k| {
+            self.observe(&r.clean[k], seed, k).map(|mut img| {
+                crate::imaging::tone::quantize(&mut img, bits);
+                img
+            })
+        });
+        Ok((a?, b?, r.flow))
+    }
+
+    /// The config this generator makes samples of.
+    pub fn config(&self) -> &GeneratorConfig {
+        &self.config
+    }
+
     fn render(&self, index: usize, seed: u64) -> Result<Rendered> {
         let layered = |scene: crate::scene::LayeredScene| -> Result<Rendered> {
             let flow = if scene.is_static() {
@@ -215,15 +262,10 @@ impl Generator {
             Err(p) => Outcome::Repaired(p),
         };
         let r = self.render(index, seed)?;
-        let depth = if self.config.camera.bit_depth == 16 {
-            BitDepth::Sixteen
-        } else {
-            BitDepth::Eight
-        };
+        let depth = self.file_depth();
         let mut files = Vec::new();
         for (k, clean) in r.clean.iter().enumerate() {
-            let purpose = [rng::purpose::NOISE_FRAME1, rng::purpose::NOISE_FRAME2][k];
-            let img = self.camera.apply(clean, rng::derive(seed, &[purpose]))?;
+            let img = self.observe(clean, seed, k)?;
             let name = format!("{index:05}_img{}.png", k + 1);
             io::write_image(&dir.join(&name), &img, depth)?;
             files.push(record_file(dir, &name)?);
@@ -352,5 +394,57 @@ mod tests {
             Shard::parse(" 1 / 4").unwrap(),
             Shard { index: 1, count: 4 }
         );
+    }
+
+    /// A sample made in memory equals its files read back, bit for bit, through the full
+    /// camera (noise, gamma, 8-bit) and at 16 bits; an index past a dataset's end is refused.
+    #[test]
+    fn pairs_in_memory_equal_written_samples() {
+        for bit_depth in [8, 16] {
+            let dir =
+                std::env::temp_dir().join(format!("pins-pair-{}-{bit_depth}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&dir);
+            let config = GeneratorConfig {
+                count: 3,
+                seed: 11,
+                scene: SceneSpec::Chairs(crate::scene::ChairsConfig {
+                    width: 48,
+                    height: 40,
+                    sprites: [1, 2],
+                    supersample: 1,
+                    ..crate::scene::ChairsConfig::default()
+                }),
+                camera: crate::imaging::CameraConfig {
+                    bit_depth,
+                    ..crate::imaging::CameraConfig::default()
+                },
+                save_clean: false,
+            };
+            let generator = Generator::new(config).expect("generator");
+            generator.run(&dir, Shard::ALL, false).expect("generate");
+            for i in 0..3 {
+                let (a, b, flow) = generator.pair(i).expect("pair");
+                let (ra, rb) = io::read_image_pair(
+                    &dir.join(format!("{i:05}_img1.png")),
+                    &dir.join(format!("{i:05}_img2.png")),
+                )
+                .expect("read");
+                assert_eq!(
+                    a.data(),
+                    ra.data(),
+                    "frame 1 of sample {i}, {bit_depth} bits"
+                );
+                assert_eq!(
+                    b.data(),
+                    rb.data(),
+                    "frame 2 of sample {i}, {bit_depth} bits"
+                );
+                let rf = io::read_flow(&dir.join(format!("{i:05}_flow.flo"))).expect("flow");
+                let f = flow.expect("a moving scene has flow");
+                assert_eq!(f.u(), rf.u());
+                assert_eq!(f.v(), rf.v());
+            }
+            let _ = std::fs::remove_dir_all(&dir);
+        }
     }
 }

@@ -200,8 +200,21 @@ impl FlowDataset {
 /// [`FlowDataset::fingerprint`]).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DataFingerprint {
+    /// Pairs the data holds; 0 for pairs made on the fly (`super::train::stream`).
     pub pairs: usize,
     pub sha256: String,
+}
+
+impl DataFingerprint {
+    /// "N pairs (fingerprint abcdef012345)", or "pairs made on the fly (fingerprint …)".
+    pub fn describe(&self) -> String {
+        let short = &self.sha256[..12.min(self.sha256.len())];
+        if self.pairs == 0 {
+            format!("pairs made on the fly (fingerprint {short})")
+        } else {
+            format!("{} pairs (fingerprint {short})", self.pairs)
+        }
+    }
 }
 
 /// Repeats a grey channel three times; keeps 3 channels; drops alpha.

@@ -11,7 +11,7 @@ use super::infer::{Predictor, predict_flow};
 use super::metrics::{FlowErrorSums, FlowScores};
 use super::model::{Mms, MmsConfig};
 use crate::error::{Error, Result};
-use crate::types::Flow;
+use crate::types::{Flow, Image};
 
 /// One row of the report: the network at `iters` iterations, alone or followed by the
 /// variational refinement (`refined`; its time includes the network's).
@@ -113,9 +113,22 @@ pub fn evaluate_dataset(
     max_pairs: usize,
     device: &Device,
 ) -> Result<FlowScores> {
+    let n = data.pairs.len().min(max_pairs.max(1));
+    evaluate_pairs(model, cfg, n, |i| data.load(i), iters, device)
+}
+
+/// [`evaluate_dataset`] on `n` pairs given by `load` (images and ground truth).
+pub fn evaluate_pairs(
+    model: &Mms,
+    cfg: &MmsConfig,
+    n: usize,
+    load: impl Fn(usize) -> Result<(Image, Image, Flow)>,
+    iters: usize,
+    device: &Device,
+) -> Result<FlowScores> {
     let mut sums = FlowErrorSums::default();
-    for i in 0..data.pairs.len().min(max_pairs.max(1)) {
-        let (a, b, gt) = data.load(i)?;
+    for i in 0..n {
+        let (a, b, gt) = load(i)?;
         let pred = predict_flow(model, cfg, &a, &b, iters, device)?;
         sums.add(&pred, &gt, None)?;
     }

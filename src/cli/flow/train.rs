@@ -11,7 +11,9 @@ pub(crate) struct TrainArgs {
     /// Training config (JSON); the shipped small-model defaults when absent.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Dataset folder (from `pins generate`, or FlyingChairs/Sintel/Middlebury/KITTI layout).
+    /// Dataset folder (from `pins generate`, or FlyingChairs/Sintel/Middlebury/KITTI layout), or
+    /// a stream file (`.json`: generator configs with weights) whose pairs are made on the fly
+    /// as the steps need them, each one new (see docs/training.md).
     #[arg(long)]
     data: PathBuf,
     /// Run folder: checkpoints, log.csv, curves.png, best/last.safetensors.

@@ -13,8 +13,10 @@ pub mod resume;
 pub mod save;
 pub mod schedule;
 pub mod setup;
+pub mod source;
 pub mod stamp;
 pub mod step;
+pub mod stream;
 pub mod trainer;
 pub mod validate;
 

@@ -8,14 +8,15 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use super::config::TrainConfig;
+use super::source::TrainData;
 use super::step;
 use crate::error::{Error, Result};
-use crate::flow::data::{Example, FlowDataset};
+use crate::flow::data::Example;
 
 /// The batches of steps `next − queue.len() .. next`, each loading on its own thread.
 pub struct Prefetch {
     config: Arc<TrainConfig>,
-    train_set: Arc<FlowDataset>,
+    data: Arc<TrainData>,
     queue: VecDeque<(usize, JoinHandle<Result<Vec<Example>>>)>,
     /// The next step to start loading.
     next: usize,
@@ -28,14 +29,14 @@ impl Prefetch {
     /// Starts loading steps `start..` (at most `depth` at a time, at least one) up to `stop`.
     pub fn new(
         config: &TrainConfig,
-        train_set: &FlowDataset,
+        data: &TrainData,
         start: usize,
         stop: usize,
         depth: usize,
     ) -> Self {
         let mut prefetch = Self {
             config: Arc::new(config.clone()),
-            train_set: Arc::new(train_set.clone()),
+            data: Arc::new(data.clone()),
             queue: VecDeque::new(),
             next: start,
             stop,
@@ -55,7 +56,7 @@ impl Prefetch {
 
     fn fill(&mut self) {
         while self.queue.len() < self.depth && self.next < self.stop {
-            let (config, set, s) = (self.config.clone(), self.train_set.clone(), self.next);
+            let (config, set, s) = (self.config.clone(), self.data.clone(), self.next);
             let handle = std::thread::spawn(move || step::examples(&config, &set, s));
             self.queue.push_back((self.next, handle));
             self.next += 1;
@@ -83,7 +84,6 @@ impl Prefetch {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flow::data::FlowDataset;
 
     /// The prefetched batches are exactly the ones loaded in the step, in order, and stop at
     /// `stop`.
@@ -108,12 +108,12 @@ mod tests {
             .expect("generator")
             .run(&dir, crate::dataset::Shard::ALL, false)
             .expect("generate");
-        let set = FlowDataset::open(&dir).expect("open");
         let config = TrainConfig {
             batch_size: 3,
             crop: [32, 48],
             ..TrainConfig::default()
         };
+        let set = TrainData::open(&dir, &config).expect("open");
         let mut prefetch = Prefetch::new(&config, &set, 2, 7, 3);
         for s in 2..7 {
             let a = prefetch.take(s).expect("prefetched");

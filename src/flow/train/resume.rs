@@ -155,16 +155,14 @@ pub fn refuse_other_data(
     Err(Error::invalid(
         "--data",
         format!(
-            "the run in {} was trained on {} ({} pairs, fingerprint {}), but {} holds {} \
-             pairs (fingerprint {}): resuming on other data would silently change the run; \
-             start a new run (--init with its weights to fine-tune)",
+            "the run in {} was trained on {} ({}), but {} holds {}: resuming on other \
+             data would silently change the run; start a new run (--init with its weights to \
+             fine-tune)",
             opts.branch_from.as_ref().unwrap_or(&opts.out).display(),
             state.data.display(),
-            stored.pairs,
-            &stored.sha256[..12.min(stored.sha256.len())],
+            stored.describe(),
             opts.data.display(),
-            fingerprint.pairs,
-            &fingerprint.sha256[..12],
+            fingerprint.describe(),
         ),
     ))
 }

@@ -14,7 +14,6 @@ use super::cooldown::Cooldown;
 use super::log::TrainLog;
 use super::options::TrainOptions;
 use crate::error::{Error, Result};
-use crate::flow::data::FlowDataset;
 use crate::flow::model::{Mms, MmsConfig};
 use crate::flow::weights;
 use crate::rng;
@@ -45,28 +44,6 @@ pub struct Run {
 #[derive(Clone, Copy, Debug)]
 pub struct WarmRestart {
     pub step: usize,
-}
-
-/// Fails early on images smaller than the crop.
-pub fn check_crop(
-    train_set: &FlowDataset,
-    config: &TrainConfig,
-    opts: &TrainOptions,
-) -> Result<()> {
-    let (a, _, _) = train_set.load(0)?;
-    if a.height() < config.crop[0] || a.width() < config.crop[1] {
-        return Err(Error::invalid(
-            "train.crop",
-            format!(
-                "{:?} is larger than the {}x{} images of {}",
-                config.crop,
-                a.height(),
-                a.width(),
-                opts.data.display()
-            ),
-        ));
-    }
-    Ok(())
 }
 
 /// The network and optimiser of a new run (warm-restarted when `warm` is given), or of

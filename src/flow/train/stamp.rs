@@ -95,14 +95,12 @@ impl TrainingStamp {
             return Err(Error::invalid(
                 "--continue-from",
                 format!(
-                    "{} was trained on other data ({} pairs, fingerprint {}) than --data \
-                     holds ({} pairs, fingerprint {}): a warm restart continues the same run; \
-                     use --init to fine-tune from it on new data",
+                    "{} was trained on other data ({}) than --data holds ({}): a warm \
+                     restart continues the same run; use --init to fine-tune from it on new \
+                     data",
                     what.display(),
-                    self.data.pairs,
-                    short(&self.data.sha256),
-                    data.pairs,
-                    short(&data.sha256)
+                    self.data.describe(),
+                    data.describe()
                 ),
             ));
         }
@@ -132,10 +130,6 @@ pub fn restart_factor(step: usize, restart: Option<usize>, warmup: usize) -> f64
         }
         _ => 1.0,
     }
-}
-
-fn short(sha: &str) -> &str {
-    &sha[..12.min(sha.len())]
 }
 
 #[cfg(test)]

@@ -10,8 +10,9 @@ use super::checkpoint;
 use super::clip::clip_global_norm;
 use super::config::TrainConfig;
 use super::options::TrainOptions;
+use super::source::TrainData;
 use crate::error::{Error, Result};
-use crate::flow::data::{Batch, Example, FlowDataset, make_example};
+use crate::flow::data::{Batch, Example, make_example};
 use crate::flow::loss::{mean_epe, moving_weights, sequence_loss};
 use crate::flow::model::Mms;
 use crate::rng;
@@ -33,12 +34,12 @@ pub struct StepStats {
 /// images `[B, 3, h, w]`, flow `[B, 2, h, w]`, valid `[B, 1, h, w]` for the crop `[h, w]`
 pub fn batch(
     config: &TrainConfig,
-    train_set: &FlowDataset,
+    data: &TrainData,
     step: usize,
     device: &Device,
 ) -> Result<Batch> {
     Ok(Batch::stack(
-        examples(config, train_set, step)?,
+        examples(config, data, step)?,
         config.crop[0],
         config.crop[1],
         device,
@@ -47,16 +48,11 @@ pub fn batch(
 
 /// The examples of step `step`'s batch, in order: a function of (seed, step) alone, whatever
 /// the number of devices they are then spread over.
-pub fn examples(
-    config: &TrainConfig,
-    train_set: &FlowDataset,
-    step: usize,
-) -> Result<Vec<Example>> {
+pub fn examples(config: &TrainConfig, data: &TrainData, step: usize) -> Result<Vec<Example>> {
     let mut r = rng::stream(config.seed, &[rng::purpose::TRAIN, step as u64]);
     let mut examples = Vec::with_capacity(config.batch_size);
-    for _ in 0..config.batch_size {
-        let i = rand::RngExt::random_range(&mut r, 0..train_set.pairs.len());
-        let (a, b, f) = train_set.load(i)?;
+    for slot in 0..config.batch_size {
+        let (a, b, f) = data.train_pair(config, step, slot, &mut r)?;
         examples.push(make_example(
             &a,
             &b,

@@ -26,11 +26,12 @@ use super::options::{TrainOptions, TrainSummary};
 use super::prefetch::Prefetch;
 use super::schedule::one_cycle;
 use super::setup::WarmRestart;
+use super::source::TrainData;
 use super::stamp::{TrainingStamp, restart_factor};
 use super::{checkpoint, cooldown};
 use super::{resume, save, setup, step, validate};
 use crate::error::{Error, Result};
-use crate::flow::data::{DataFingerprint, FlowDataset};
+use crate::flow::data::DataFingerprint;
 
 /// Trains (or resumes) a run. `config` is the run's config: required to be equal to the stored
 /// one when resuming (`None` then means "the stored one"), the defaults when `None` on a new run.
@@ -42,8 +43,8 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     // Where the run ends: its schedule's last step, or its cool-down's.
     let end = cooldown.map_or(config.steps, |c| c.end());
     let model_config = config.model_config()?;
-    let dataset = FlowDataset::open(&opts.data)?;
-    let fingerprint = dataset.fingerprint()?;
+    let data = TrainData::open(&opts.data, &config)?;
+    let fingerprint = data.fingerprint.clone();
     let warm = warm_restart(&config, &fingerprint, opts)?;
     if let Some(w) = warm {
         start = w.step;
@@ -54,9 +55,6 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             return Ok(resume::already_complete(state, &model_config));
         }
     }
-    dataset.check_has_known_flow()?;
-    let (train_set, val_set) = dataset.split(config.val_fraction);
-    setup::check_crop(&train_set, &config, opts)?;
     let mut run = setup::start(&config, &model_config, existing, warm, start, opts)?;
     run.cooldown = cooldown;
 
@@ -77,7 +75,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     let bar = progress_bar(opts.progress, end, start);
     let mut step = start;
     let stop = opts.stop_after.map_or(end, |n| (start + n).min(end));
-    let mut batches = Prefetch::new(&config, &train_set, step, stop, Prefetch::default_depth());
+    let mut batches = Prefetch::new(&config, &data, step, stop, Prefetch::default_depth());
     let (mut saved_at, mut last_save) = (step, Instant::now());
     let (mut last_step, mut last_validation) = (Duration::ZERO, Duration::ZERO);
     // A session's first step and first validation also compile a GPU's kernels (minutes on
@@ -143,7 +141,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
             let scores = validate::validate(
                 &run.model,
                 &model_config,
-                &val_set,
+                &data,
                 &config,
                 opts,
                 &mut run.best_val,

@@ -1,0 +1,336 @@
+//! Training pairs made on the fly (Note S11's training data, unbounded): a mix of generator
+//! configs (chairs scenes through the metalens camera), each drawn with its weight, every pair
+//! made in memory when a step needs it and never seen twice. Pair `i` of a source is the
+//! generator's sample `i` — the bytes `pins generate` would write for it — so the data of a
+//! step is a function of (seed, step) alone and `--resume` replays it exactly; no disk is used.
+//!
+//! The stream file (`--data mix.json`):
+//!
+//! ```json
+//! {"sources": [{"generator": "data/1_real.json", "weight": 800},
+//!              {"generator": "data/7_small.json", "weight": 800}]}
+//! ```
+//!
+//! Paths are relative to the stream file; a generator's `count` is not used (a stream has no
+//! end). The validation pairs are a fixed set, apart from every training pair: pair `j` comes
+//! from the source whose share of the weights holds `(j + ½) / n` (each source in proportion),
+//! at sample index `VAL_BASE + j`.
+
+use std::path::{Path, PathBuf};
+
+use rand::RngExt;
+use serde::{Deserialize, Serialize};
+
+use crate::dataset::{Generator, GeneratorConfig, SceneSpec};
+use crate::error::Result;
+use crate::flow::data::DataFingerprint;
+use crate::rng;
+use crate::types::{Flow, Image};
+
+/// The first sample index of the validation pairs; training pairs use `step · batch + slot`,
+/// far below it.
+pub const VAL_BASE: usize = 1 << 40;
+
+/// One source of a stream file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StreamSource {
+    /// A generator config (JSON); relative to the stream file.
+    pub generator: PathBuf,
+    /// The source's share of the pairs, relative to the other sources' weights.
+    pub weight: f64,
+}
+
+/// A stream file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StreamConfig {
+    pub sources: Vec<StreamSource>,
+}
+
+/// A stream ready to make pairs: each source's generator and the cumulative shares.
+pub struct Stream {
+    path: PathBuf,
+    generators: Vec<Generator>,
+    /// Cumulative shares of the weights, ending at 1.
+    cumulative: Vec<f64>,
+    fingerprint: DataFingerprint,
+    /// The smallest frame of any source, `(height, width)`.
+    smallest: (usize, usize),
+}
+
+/// Whether `path` names a stream file rather than a folder of pairs.
+pub fn is_stream_file(path: &Path) -> bool {
+    path.is_file()
+        && path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+}
+
+impl Stream {
+    /// Reads the stream file and every generator config it names (their photographs too),
+    /// refusing what cannot make training pairs.
+    pub fn open(path: &Path) -> Result<Self> {
+        let config: StreamConfig = crate::io::read_json(path)?;
+        if config.sources.is_empty() {
+            return Err(crate::io::in_config(path, "sources: none given"));
+        }
+        let base = path.parent().unwrap_or(Path::new(""));
+        let total: f64 = config.sources.iter().map(|s| s.weight).sum();
+        let mut generators = Vec::new();
+        let mut cumulative = Vec::new();
+        let mut acc = 0.0;
+        let mut smallest = (usize::MAX, usize::MAX);
+        use sha2::{Digest, Sha256};
+        let mut hash = Sha256::new();
+        for (k, source) in config.sources.iter().enumerate() {
+            if !(source.weight.is_finite() && source.weight > 0.0) {
+                return Err(crate::io::in_config(
+                    path,
+                    format!(
+                        "sources[{k}].weight: must be a positive number, got {}",
+                        source.weight
+                    ),
+                ));
+            }
+            let file = base.join(&source.generator);
+            let generator_config = GeneratorConfig::from_file(&file)?;
+            let SceneSpec::Chairs(chairs) = &generator_config.scene else {
+                return Err(crate::io::in_config(
+                    &file,
+                    "scene.kind: a stream makes pairs of chairs scenes (the other kinds are \
+                     fixed patterns or a finite dataset: generate them into a folder)",
+                ));
+            };
+            smallest = (smallest.0.min(chairs.height), smallest.1.min(chairs.width));
+            // The data's identity: the config as written (paths as the file gives them, so
+            // the checkout may move) and the photographs it reads (names and sizes).
+            let written: serde_json::Value = crate::io::read_json(&file)?;
+            hash.update(source.weight.to_le_bytes());
+            hash.update(
+                serde_json::to_string(&written)
+                    .unwrap_or_default()
+                    .as_bytes(),
+            );
+            hash.update([0]);
+            if let Some(photos) = &chairs.photos {
+                for p in photos.library()?.iter() {
+                    let (c, h, w) = p.image.shape();
+                    hash.update(p.name.as_bytes());
+                    hash.update([0]);
+                    for d in [c, h, w] {
+                        hash.update((d as u64).to_le_bytes());
+                    }
+                }
+            }
+            generators.push(Generator::new(generator_config)?);
+            acc += source.weight / total;
+            cumulative.push(acc);
+        }
+        if let Some(last) = cumulative.last_mut() {
+            *last = 1.0;
+        }
+        let digest = hash.finalize();
+        Ok(Self {
+            path: path.to_path_buf(),
+            generators,
+            cumulative,
+            fingerprint: DataFingerprint {
+                pairs: 0,
+                sha256: digest.iter().map(|b| format!("{b:02x}")).collect(),
+            },
+            smallest,
+        })
+    }
+
+    /// The stream file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The data's identity: a hash of each source's weight, config and photographs; `pairs`
+    /// is 0 (a stream has no end).
+    pub fn fingerprint(&self) -> &DataFingerprint {
+        &self.fingerprint
+    }
+
+    /// The smallest frame any source makes, `(height, width)`.
+    pub fn smallest_frame(&self) -> (usize, usize) {
+        self.smallest
+    }
+
+    /// The source whose share of the weights holds `t` in [0, 1).
+    fn source_at(&self, t: f64) -> usize {
+        self.cumulative
+            .iter()
+            .position(|&c| t < c)
+            .unwrap_or(self.cumulative.len() - 1)
+    }
+
+    /// Training pair `slot` of step `step` (of `batch` pairs): its source drawn with `r` by
+    /// weight, its sample index `step · batch + slot`.
+    pub fn train_pair(
+        &self,
+        step: usize,
+        slot: usize,
+        batch: usize,
+        r: &mut rng::Rng,
+    ) -> Result<(Image, Image, Flow)> {
+        let k = self.source_at(r.random_range(0.0..1.0));
+        self.make(k, step * batch + slot)
+    }
+
+    /// Validation pair `j` of `n`: from the source whose share holds `(j + ½) / n`, at sample
+    /// index `VAL_BASE + j`.
+    pub fn val_pair(&self, j: usize, n: usize) -> Result<(Image, Image, Flow)> {
+        let k = self.source_at((j as f64 + 0.5) / n.max(1) as f64);
+        self.make(k, VAL_BASE + j)
+    }
+
+    /// Sample `index` of source `k`, in colour; a still scene's flow is zero everywhere.
+    fn make(&self, k: usize, index: usize) -> Result<(Image, Image, Flow)> {
+        let (a, b, flow) = self.generators[k].pair(index)?;
+        let flow = flow.unwrap_or_else(|| Flow::zeros(a.height(), a.width()));
+        Ok((
+            crate::flow::data::to_rgb(a),
+            crate::flow::data::to_rgb(b),
+            flow,
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).expect("write");
+        p
+    }
+
+    fn folder(tag: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("pins-stream-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("dir");
+        dir
+    }
+
+    const SMALL: &str = r#"{"count": 1, "seed": 3, "scene": {"kind": "chairs", "width": 40, "height": 32, "supersample": 1, "sprites": [1, 2]}}"#;
+    const LARGE: &str = r#"{"count": 1, "seed": 4, "scene": {"kind": "chairs", "width": 56, "height": 48, "supersample": 1, "sprites": [1, 2]}}"#;
+
+    /// Pairs are the generator's samples, a function of (step, slot, draw) alone; the sources
+    /// are drawn by weight; validation pairs take each source in proportion; the fingerprint
+    /// follows the weights and configs.
+    #[test]
+    fn pairs_follow_the_weights_and_repeat() {
+        let dir = folder("mix");
+        write(&dir, "a.json", SMALL);
+        write(&dir, "b.json", LARGE);
+        let mix = write(
+            &dir,
+            "mix.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1}, {"generator": "b.json", "weight": 3}]}"#,
+        );
+        let stream = Stream::open(&mix).expect("open");
+        assert!(is_stream_file(&mix) && !is_stream_file(&dir));
+        assert_eq!(stream.smallest_frame(), (32, 40));
+        // The draw by weight: about three in four from b (48 rows).
+        let mut r = rng::stream(1, &[0]);
+        let from_b = (0..400)
+            .filter(|_| stream.source_at(r.random_range(0.0..1.0)) == 1)
+            .count();
+        assert!((260..=340).contains(&from_b), "{from_b} of 400 from b");
+        // Validation: 1 of 4 pairs from a, in order of the shares.
+        let sources: Vec<usize> = (0..4)
+            .map(|j| stream.source_at((j as f64 + 0.5) / 4.0))
+            .collect();
+        assert_eq!(sources, [0, 1, 1, 1]);
+        // A pair is made again exactly; another index is another pair.
+        let pair = |step, slot| {
+            let mut r = rng::stream(5, &[step as u64]);
+            stream.train_pair(step, slot, 2, &mut r).expect("pair")
+        };
+        let (a1, b1, f1) = pair(3, 1);
+        let (a2, b2, f2) = pair(3, 1);
+        assert_eq!(
+            (a1.data(), b1.data(), f1.data()),
+            (a2.data(), b2.data(), f2.data())
+        );
+        assert_eq!(a1.shape().0, 3);
+        let (a3, _, _) = pair(4, 1);
+        assert_ne!(a1.data(), a3.data());
+        // The validation pair j of source b is that generator's sample VAL_BASE + j.
+        let (va, _, vf) = stream.val_pair(1, 4).expect("val");
+        let generator = Generator::new(GeneratorConfig::from_file(&dir.join("b.json")).unwrap())
+            .expect("generator");
+        let (ga, _, gf) = generator.pair(VAL_BASE + 1).expect("sample");
+        assert_eq!(va.data(), crate::flow::data::to_rgb(ga).data());
+        assert_eq!(Some(vf.data()), gf.as_ref().map(|f| f.data()));
+        // The fingerprint changes with a weight and with a config, not with the folder.
+        let f0 = stream.fingerprint().clone();
+        assert_eq!(f0.pairs, 0);
+        write(
+            &dir,
+            "mix.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1}, {"generator": "b.json", "weight": 2}]}"#,
+        );
+        assert_ne!(Stream::open(&mix).unwrap().fingerprint(), &f0);
+        let moved = folder("moved");
+        for f in ["a.json", "b.json"] {
+            std::fs::copy(dir.join(f), moved.join(f)).unwrap();
+        }
+        let text = r#"{"sources": [{"generator": "a.json", "weight": 1}, {"generator": "b.json", "weight": 3}]}"#;
+        let moved_mix = write(&moved, "mix.json", text);
+        assert_eq!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
+        write(
+            &moved,
+            "b.json",
+            &LARGE.replace("\"seed\": 4", "\"seed\": 5"),
+        );
+        assert_ne!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
+        let _ = std::fs::remove_dir_all(&dir);
+        let _ = std::fs::remove_dir_all(&moved);
+    }
+
+    /// What cannot make training pairs is refused with the file and the reason.
+    #[test]
+    fn bad_streams_are_refused() {
+        let dir = folder("bad");
+        write(&dir, "a.json", SMALL);
+        write(
+            &dir,
+            "disc.json",
+            r#"{"count": 1, "scene": {"kind": "disc", "radius": 5}}"#,
+        );
+        for (text, needle) in [
+            (r#"{"sources": []}"#, "none given"),
+            (
+                r#"{"sources": [{"generator": "a.json", "weight": 0}]}"#,
+                "positive",
+            ),
+            (
+                r#"{"sources": [{"generator": "a.json", "weight": -1}]}"#,
+                "positive",
+            ),
+            (
+                r#"{"sources": [{"generator": "nope.json", "weight": 1}]}"#,
+                "nope.json",
+            ),
+            (
+                r#"{"sources": [{"generator": "disc.json", "weight": 1}]}"#,
+                "chairs",
+            ),
+            (
+                r#"{"sources": [{"generator": "a.json", "weight": 1, "x": 2}]}"#,
+                "unknown field",
+            ),
+            (r#"{"source": []}"#, "unknown field"),
+        ] {
+            let mix = write(&dir, "mix.json", text);
+            let e = Stream::open(&mix).err().expect(text).to_string();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
