@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One GPU lease's work in one command: the live system's benchmark on the GPU
-# (experiments/bench_live_gpu.json) while the host's cores generate the campaign's data, then
-# the campaign's training (scripts/train_campaign.sh gpu) for what is left of SECONDS.
+# (experiments/bench_live_gpu.json), then the campaign's training (scripts/train_campaign.sh gpu,
+# its pairs made on the host's cores as it trains) for what is left of SECONDS.
 #
 #   scripts/gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]
 #
@@ -26,15 +26,6 @@ say() { echo "[$(($(date +%s) - t0)) s] $*"; }
 say "gpu_increment: $DEVICE, $(nproc) cores, $SECONDS_TOTAL s"
 nvidia-smi -L 2>/dev/null || true
 
-# The data, in the background (train_campaign.sh then finds it made).
-(
-    for cfg in experiments/campaign/data/*.json; do
-        name=$(basename "$cfg" .json)
-        "$PINS" generate --quiet --config "$cfg" --out "$WORK/data/$name" || exit 1
-    done
-) > "$WORK.generate.log" 2>&1 &
-gen=$!
-
 # The live benchmark on the GPU, bounded so that the training keeps most of the lease.
 bench_s=$((SECONDS_TOTAL / 3))
 say "bench-live on $DEVICE (at most $bench_s s)"
@@ -42,9 +33,6 @@ CUBECL_AUTOTUNE_LEVEL=minimal timeout "$bench_s" "$PINS" bench-live --device "$D
     --config experiments/bench_live_gpu.json --out "$WORK.bench_live" &&
     cp "$WORK.bench_live/report.md" "$OUTDIR/bench_live.md"
 say "bench-live exited"
-
-wait "$gen" || say "data generation failed: $(tail -3 "$WORK.generate.log")"
-say "data generated"
 
 # The training: whole minutes of what is left, less a minute for its last step and the copies.
 minutes=$(((SECONDS_TOTAL - ($(date +%s) - t0) - 60) / 60))

@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The training campaign of the MMS network: one long run (experiments/campaign/train.json) on
-# the campaign's data (experiments/campaign/data/*.json, generated here, deterministic),
+# the campaign's stream (experiments/campaign/stream.json: the generator configs of data/*.json
+# with their weights, each pair made in memory when a step needs it and never seen twice),
 # continued a session at a time, on the CPU in the background or on a GPU machine.
 #
 #   scripts/train_campaign.sh [run] [BUDGET]       continue on this machine's CPU, niced (BUDGET
 #                                                  as pins train --time-budget; default 2h)
 #   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) until MINUTES
-#                                                  (at most 9) after the script started, data
-#                                                  generation included, and copy the checkpoint,
+#                                                  (at most 9) after the script started, and
+#                                                  copy the checkpoint,
 #                                                  weights, the mean of the session's snapshots,
 #                                                  log and pairs/s to OUTDIR (each file under
 #                                                  16 MiB)
@@ -39,7 +40,7 @@
 # ten minutes. After a session, `status` prints the step, the pairs seen and the hours.
 #
 # Environment: PINS (a pins binary; default: built here with cargo), WORK (default
-# out/campaign: data, mix and run), CAMPAIGN (default experiments/campaign), DEVICE (gpu mode,
+# out/campaign: run, snapshots, cool-downs), CAMPAIGN (default experiments/campaign), DEVICE (gpu mode,
 # default wgpu), NEW_SCHEDULE=1 (start a new schedule from the campaign's weights with --init
 # after its config changed).
 set -euo pipefail
@@ -48,8 +49,8 @@ t_script=$(date +%s)
 CAMPAIGN=${CAMPAIGN:-experiments/campaign}
 WORK=${WORK:-out/campaign}
 RUN=$WORK/run
-MIX=$WORK/mix
 CONFIG=$CAMPAIGN/train.json
+STREAM=$CAMPAIGN/stream.json
 WEIGHTS=$CAMPAIGN/weights.safetensors
 START=datasets/weights/mms-small-real.safetensors
 
@@ -62,9 +63,8 @@ esac
 
 [ -d "$CAMPAIGN" ] || die "no campaign folder $CAMPAIGN"
 [ -f "$CONFIG" ] || die "the campaign folder $CAMPAIGN has no train.json"
+[ -f "$STREAM" ] || die "the campaign folder $CAMPAIGN has no stream.json"
 shopt -s nullglob
-sets=("$CAMPAIGN"/data/*.json)
-[ "${#sets[@]}" -gt 0 ] || die "the campaign folder $CAMPAIGN has no data/*.json"
 
 if [ -z "${PINS:-}" ]; then
     cargo build --release --locked --quiet
@@ -163,32 +163,7 @@ PY
     exit 0
 fi
 
-# The data: each set generated (a rerun redoes only what is missing or damaged), then the sets
-# interleaved into one folder by hard links, so that the validation split (the last pairs)
-# samples every set.
-mkdir -p "$WORK/data"
-names=()
-for cfg in "${sets[@]}"; do
-    name=$(basename "$cfg" .json)
-    names+=("$name")
-    "$PINS" generate --quiet --config "$cfg" --out "$WORK/data/$name" ||
-        die "generating $cfg into $WORK/data/$name failed"
-done
-rm -rf "$MIX.tmp"
-mkdir -p "$MIX.tmp"
-for name in "${names[@]}"; do
-    n=$(find "$WORK/data/$name" -maxdepth 1 -name '*_flow.flo' | wc -l)
-    [ "$n" -gt 0 ] || die "$WORK/data/$name holds no pairs"
-    awk -v n="$n" -v s="$name" 'BEGIN { for (i = 0; i < n; i++) printf "%.9f %s %05d\n", (i + 0.5) / n, s, i }'
-done | sort -k1,1g -k2,2 | awk '{ printf "%s %s %05d\n", $2, $3, NR - 1 }' |
-    while read -r name i k; do
-        for f in img1.png img2.png flow.flo; do
-            ln "$WORK/data/$name/${i}_$f" "$MIX.tmp/${k}_$f"
-        done
-    done
-rm -rf "$MIX"
-mv "$MIX.tmp" "$MIX"
-echo "data: $(find "$MIX" -name '*_flow.flo' | wc -l) pairs in $MIX (${names[*]})"
+echo "data: pairs made on the fly from $STREAM"
 
 # A cool-down branches off the run where it stands (warmup–stable–decay: the run stays at its
 # schedule's rate, each branch ends at zero and is what gets scored and shipped).
@@ -205,7 +180,7 @@ if [ "$mode" = cooldown ]; then
         from=(--branch-from "$RUN")
     fi
     echo "cooling down: ${from[*]} → $branch over $steps steps"
-    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$branch" \
+    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
         "${from[@]}" --cooldown "$steps" --time-budget "${2:-2h}"
     echo "cool-down weights: $branch/last.safetensors"
     exit 0
@@ -238,7 +213,7 @@ echo "starting: ${start[*]}"
 # every 100 steps and every ten minutes) for `average`.
 if [ "$mode" = run ]; then
     budget=${1:-2h}
-    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" \
+    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$RUN" \
         "${start[@]}" --time-budget "$budget" --snapshots "$WORK/snapshots"
     status
     exit 0
@@ -250,13 +225,13 @@ outdir=${2:?usage: train_campaign.sh gpu MINUTES OUTDIR}
 [ "$minutes" -ge 1 ] && [ "$minutes" -le 9 ] || die "MINUTES must be in 1..9, got $minutes"
 mkdir -p "$outdir"
 t0=$(date +%s)
-# What is left of the minutes once the data are made, less 30 s for the last step and the copy.
+# What is left of the minutes once started, less 30 s for the last step and the copy.
 left=$((minutes * 60 - (t0 - t_script) - 30))
-[ "$left" -ge 60 ] || die "only ${left} s are left of ${minutes} min after generating the data"
+[ "$left" -ge 60 ] || die "only ${left} s are left of ${minutes} min"
 echo "training for at most ${left} s on ${DEVICE:-wgpu}"
 mkdir -p "$WORK/snapshots"
 before=" $(cd "$WORK/snapshots" && echo *.safetensors) "
-"$PINS" train --quiet --config "$CONFIG" --data "$MIX" --out "$RUN" --device "${DEVICE:-wgpu}" \
+"$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$RUN" --device "${DEVICE:-wgpu}" \
     "${start[@]}" --time-budget "${left}s" --snapshots "$WORK/snapshots"
 echo "trained for $(($(date +%s) - t0)) s on ${DEVICE:-wgpu}"
 status | tee "$outdir/status.txt"

@@ -425,20 +425,28 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
             "checkpoint_every": 1000, "restart_warmup": 2}"#,
     )
     .unwrap();
-    for (name, count, seed) in [("a", 3, 1), ("b", 2, 2)] {
+    for (name, seed) in [("a", 1), ("b", 2)] {
         fs::write(
             c.join(format!("data/{name}.json")),
             format!(
-                r#"{{"count": {count}, "seed": {seed}, "scene": {{"kind": "chairs", "width": 80, "height": 64}}}}"#
+                r#"{{"count": 1, "seed": {seed}, "scene": {{"kind": "chairs", "width": 80, "height": 64, "supersample": 1}}}}"#
             ),
         )
         .unwrap();
     }
+    let (ok_, text) = campaign(&["status"], &env, &[]);
+    assert!(!ok_ && text.contains("no stream.json"), "{text}");
+    fs::write(
+        c.join("stream.json"),
+        r#"{"sources": [{"generator": "data/a.json", "weight": 3},
+                        {"generator": "data/b.json", "weight": 2}]}"#,
+    )
+    .unwrap();
     // A first session of one second: from the shipped weights, ended by its budget.
     let (ok_, text) = campaign(&["run", "1s"], &env, &[]);
     assert!(ok_, "{text}");
     assert!(
-        text.contains("5 pairs in") && text.contains("starting: --init"),
+        text.contains("pairs made on the fly") && text.contains("starting: --init"),
         "{text}"
     );
     assert!(text.contains("stopped by its time budget"), "{text}");
@@ -450,7 +458,7 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         "--config",
         s(&c.join("train.json")),
         "--data",
-        s(&work.join("mix")),
+        s(&c.join("stream.json")),
         "--out",
         s(&work2.join("run")),
         "--stop-after",
