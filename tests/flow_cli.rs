@@ -31,15 +31,6 @@ fn tiny_train_config(dir: &Path) -> PathBuf {
     p
 }
 
-fn losses(run: &Path) -> Vec<String> {
-    fs::read_to_string(run.join("log.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').take(4).collect::<Vec<_>>().join(","))
-        .collect()
-}
-
 #[test]
 fn resume_continues_exactly() {
     let tmp = tempfile::tempdir().unwrap();
@@ -71,7 +62,7 @@ fn resume_continues_exactly() {
         "2",
         "--quiet",
     ]));
-    assert_eq!(losses(&chunked).len(), 2);
+    assert_eq!(common::log_steps(&chunked).len(), 2);
     // Without --resume an existing run is refused; with it, training continues at step 3.
     let err = failed(&pins(&[
         "train", "--config", c, "--data", d, "--out", co, "--quiet",
@@ -81,8 +72,8 @@ fn resume_continues_exactly() {
         "train", "--config", c, "--data", d, "--out", co, "--resume", "--quiet",
     ]));
     assert_eq!(
-        losses(&straight),
-        losses(&chunked),
+        common::log_steps(&straight),
+        common::log_steps(&chunked),
         "a resumed run must repeat the same steps"
     );
     // Same inputs, same bytes: the weights and checkpoints of the two runs are one file.

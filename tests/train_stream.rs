@@ -49,15 +49,6 @@ fn config(dir: &Path, crop: usize) -> PathBuf {
     p
 }
 
-fn log_rows(run: &Path) -> Vec<String> {
-    fs::read_to_string(run.join("log.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').take(4).collect::<Vec<_>>().join(","))
-        .collect()
-}
-
 #[test]
 fn a_stream_run_resumes_exactly_and_refuses_another_stream() {
     let tmp = tempfile::tempdir().unwrap();
@@ -93,9 +84,13 @@ fn a_stream_run_resumes_exactly_and_refuses_another_stream() {
     ok(&pins(&[
         "train", "--config", c, "--data", d, "--out", co, "--resume", "--quiet",
     ]));
-    let rows = log_rows(&straight);
+    let rows = common::log_steps(&straight);
     assert_eq!(rows.len(), 4);
-    assert_eq!(rows, log_rows(&chunked), "a resumed run repeats its steps");
+    assert_eq!(
+        rows,
+        common::log_steps(&chunked),
+        "a resumed run repeats its steps"
+    );
     // Validation ran on the stream's own pairs (steps 2 and 4 have a score).
     let log = fs::read_to_string(straight.join("log.csv")).unwrap();
     let scored = log.lines().skip(1).filter(|l| !l.ends_with(",,")).count();

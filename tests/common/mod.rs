@@ -136,6 +136,17 @@ pub fn log_column(run: &std::path::Path, col: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The first four columns of each row of a training run's `log.csv` (step, lr, loss, EPE) as
+/// written: two runs that took the same steps have equal rows.
+pub fn log_steps(run: &std::path::Path) -> Vec<String> {
+    std::fs::read_to_string(run.join("log.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').take(4).collect::<Vec<_>>().join(","))
+        .collect()
+}
+
 /// `../shared/data` (real pairs written by others), or `None` with a message when this
 /// checkout has none beside it.
 pub fn shared_data() -> Option<std::path::PathBuf> {

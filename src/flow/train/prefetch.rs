@@ -1,7 +1,8 @@
 //! Loading the batches of the coming steps on worker threads while the current step runs
 //! (Note S11's training loop, fed ahead): a step's examples are a function of (seed, step)
 //! alone ([`super::step::examples`]), so loading them early changes nothing but the wait. On a
-//! GPU the decoding and cropping of a batch of PNG pairs otherwise takes as long as the step.
+//! GPU the decoding and cropping of a batch of PNG pairs, or the making of a stream's, otherwise
+//! takes as long as the step or longer.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -46,12 +47,13 @@ impl Prefetch {
         prefetch
     }
 
-    /// The number of batches loaded ahead on this machine: one per core up to 8 (a step
-    /// needs one batch; more only smooths the slow ones).
+    /// The number of batches loaded ahead on this machine: one per core up to 16 (a step
+    /// needs one batch; on a GPU fed by a stream, making a batch takes a core several times
+    /// as long as the step, so every core makes one).
     pub fn default_depth() -> usize {
         std::thread::available_parallelism()
             .map_or(2, |n| n.get())
-            .clamp(2, 8)
+            .clamp(2, 16)
     }
 
     fn fill(&mut self) {
