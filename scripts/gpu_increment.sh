@@ -9,7 +9,9 @@
 # OUTDIR receives at most 8 files: log.txt (this script's output, the status included),
 # bench_live.md, and the training's state.json, model-*.bpk, optim-*.bin, log.csv,
 # last.safetensors and average.safetensors (the mean of the session's snapshots) in
-# OUTDIR/train (continue here with CHECKPOINT=OUTDIR/train scripts/train_campaign.sh).
+# OUTDIR/train (continue here with CHECKPOINT=OUTDIR/train scripts/train_campaign.sh), and with
+# COOLDOWN_MINUTES=M in the environment, cooldown.safetensors and cooldown_log.csv: a branch of
+# the run cooled down in the session's last M minutes.
 # The training starts where train_campaign.sh says (a checkpoint in WORK, else the campaign's
 # committed weights). Ends within SECONDS of its start, whatever the benchmark does.
 set -uo pipefail

@@ -11,7 +11,12 @@
 #                                                  copy the checkpoint,
 #                                                  weights, the mean of the session's snapshots,
 #                                                  log and pairs/s to OUTDIR (each file under
-#                                                  16 MiB)
+#                                                  16 MiB). With COOLDOWN_MINUTES=M (less than
+#                                                  MINUTES), the last M minutes cool a branch of
+#                                                  the run down instead (as `cooldown`, its
+#                                                  length from the session's median step:
+#                                                  OUTDIR/cooldown.safetensors and
+#                                                  cooldown_log.csv)
 #   scripts/train_campaign.sh cooldown STEPS [BUDGET]
 #                                                  cool a branch of the run down (pins train
 #                                                  --branch-from --cooldown): the learning rate
@@ -225,9 +230,13 @@ outdir=${2:?usage: train_campaign.sh gpu MINUTES OUTDIR}
 [ "$minutes" -ge 1 ] && [ "$minutes" -le 9 ] || die "MINUTES must be in 1..9, got $minutes"
 mkdir -p "$outdir"
 t0=$(date +%s)
-# What is left of the minutes once started, less 30 s for the last step and the copy.
-left=$((minutes * 60 - (t0 - t_script) - 30))
-[ "$left" -ge 60 ] || die "only ${left} s are left of ${minutes} min"
+cool=${COOLDOWN_MINUTES:-0}
+[[ "$cool" =~ ^[0-9]+$ ]] && [ "$cool" -lt "$minutes" ] ||
+    die "COOLDOWN_MINUTES must be a whole number of minutes below MINUTES ($minutes), got '$cool'"
+# What is left of the minutes once started, less 30 s for the last step and the copy, less the
+# cool-down's minutes.
+left=$((minutes * 60 - (t0 - t_script) - 30 - cool * 60))
+[ "$left" -ge 30 ] || die "only ${left} s are left of ${minutes} min for the run"
 echo "training for at most ${left} s on ${DEVICE:-wgpu}"
 mkdir -p "$WORK/snapshots"
 before=" $(cd "$WORK/snapshots" && echo *.safetensors) "
@@ -249,5 +258,36 @@ for f in "$WORK"/snapshots/step-*.safetensors; do
 done
 if [ "${#session[@]}" -ge 2 ]; then
     "$PINS" average "${session[@]}" --out "$outdir/average.safetensors"
+fi
+# The cool-down: as many steps as 80 % of its minutes hold at the session's median step (the
+# rest for its validations and the last step), at most the steps the run has left.
+if [ "$cool" -gt 0 ]; then
+    read -r at steps < <(python3 - "$state" "$RUN/log.csv" "$cool" <<'PY'
+import json, statistics, sys
+state, log, cool = sys.argv[1], sys.argv[2], int(sys.argv[3])
+s = json.load(open(state))
+rows = [l.split(",") for l in open(log).read().splitlines()[1:]]
+ms = [float(r[5]) for r in rows[-20:] if len(r) > 5 and r[5]]
+n = int(0.8 * cool * 60e3 / statistics.median(ms)) if ms else 0
+print(s["step"], max(0, min(n, s["config"]["steps"] - s["step"])))
+PY
+    )
+    if [ "$steps" -ge 1 ]; then
+        branch="$WORK/cooldown-$at"
+        echo "cooling down on ${DEVICE:-wgpu}: --branch-from $RUN → $branch over $steps steps"
+        "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
+            --branch-from "$RUN" --cooldown "$steps" --device "${DEVICE:-wgpu}" \
+            --time-budget "$((minutes * 60 - ($(date +%s) - t_script) - 20))s"
+        cp "$branch/last.safetensors" "$outdir/cooldown.safetensors"
+        cp "$branch/log.csv" "$outdir/cooldown_log.csv"
+        done_at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$branch/checkpoint/state.json")
+        if [ "$done_at" -eq $((at + steps)) ]; then
+            echo "cool-down complete: steps $at to $done_at"
+        else
+            echo "cool-down stopped at step $done_at of $at to $((at + steps)): its weights are not cooled"
+        fi
+    else
+        echo "no cool-down: the run has no steps left, or the session measured none"
+    fi
 fi
 ls -l "$outdir"

@@ -51,16 +51,6 @@ fn train(
     pins_with_threads(&args, threads)
 }
 
-/// The log's rows as (step, lr, loss) text.
-fn rows(run: &Path) -> Vec<String> {
-    fs::read_to_string(run.join("log.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').take(3).collect::<Vec<_>>().join(","))
-        .collect()
-}
-
 fn state_step(run: &Path) -> u64 {
     let text = fs::read_to_string(run.join("checkpoint/state.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -104,7 +94,7 @@ fn a_time_budget_ends_the_session_with_a_checkpoint_and_resume_continues_exactly
     ok(&run_with(&budgeted, &["--resume", "--stop-after", "2"]));
     let all = (taken + 2).to_string();
     ok(&run_with(&straight, &["--stop-after", &all]));
-    assert_eq!(rows(&straight), rows(&budgeted));
+    assert_eq!(common::log_steps(&straight), common::log_steps(&budgeted));
     assert!(
         fs::read(straight.join("last.safetensors")).unwrap()
             == fs::read(budgeted.join("last.safetensors")).unwrap(),
@@ -162,7 +152,7 @@ fn sigterm_ends_the_session_at_the_next_step_with_a_checkpoint() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(stdout.contains("stopped by a stop request"), "{stdout}");
-    let taken = rows(&run).len() as u64;
+    let taken = common::log_steps(&run).len() as u64;
     assert!(taken < 100_000);
     assert_eq!(
         state_step(&run),
@@ -183,7 +173,7 @@ fn stamp_step(weights: &Path) -> usize {
 
 fn rows_or_empty(run: &Path) -> Vec<String> {
     if run.join("log.csv").is_file() {
-        rows(run)
+        common::log_steps(run)
     } else {
         Vec::new()
     }
@@ -302,7 +292,7 @@ fn a_cool_down_branches_off_the_run_and_takes_the_rate_to_zero() {
     ];
     ok(&train(&cfg, &data, &halves, &first_half, None));
     ok(&train(&cfg, &data, &halves, &["--resume"], None));
-    assert_eq!(rows(&halves), rows(&branch));
+    assert_eq!(common::log_steps(&halves), common::log_steps(&branch));
     assert!(
         fs::read(halves.join("last.safetensors")).unwrap()
             == fs::read(branch.join("last.safetensors")).unwrap(),
@@ -542,4 +532,68 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
     .unwrap();
     let (ok_, text) = campaign(&["run", "1h"], &env, &[]);
     assert!(!ok_ && text.contains("iters: 2 → 3"), "{text}");
+}
+
+/// The GPU mode (here on the CPU) with COOLDOWN_MINUTES: the run trains, then a branch of it
+/// cools down over as many steps as the session's median step allows, complete within the
+/// minutes; its weights and log come back beside the run's checkpoint.
+#[test]
+fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (c, work, out) = (
+        tmp.path().join("campaign"),
+        tmp.path().join("work"),
+        tmp.path().join("gpu_out"),
+    );
+    fs::create_dir_all(c.join("data")).unwrap();
+    fs::write(
+        c.join("train.json"),
+        r#"{"model": "mms-small", "steps": 100000, "batch_size": 1, "crop": [64, 64],
+            "iters": 2, "val_every": 1000, "val_max_pairs": 1, "val_iters": 2,
+            "checkpoint_every": 100000}"#,
+    )
+    .unwrap();
+    fs::write(
+        c.join("data/a.json"),
+        r#"{"count": 1, "seed": 1, "scene": {"kind": "chairs", "width": 80, "height": 64, "supersample": 1}}"#,
+    )
+    .unwrap();
+    fs::write(
+        c.join("stream.json"),
+        r#"{"sources": [{"generator": "data/a.json", "weight": 1}]}"#,
+    )
+    .unwrap();
+    let env = [("CAMPAIGN", c.as_path()), ("WORK", work.as_path())];
+    let (ok_, text) = campaign(
+        &["gpu", "2", s(&out)],
+        &env,
+        &[("DEVICE", "cpu"), ("COOLDOWN_MINUTES", "2")],
+    );
+    assert!(!ok_ && text.contains("COOLDOWN_MINUTES must be"), "{text}");
+    let (ok_, text) = campaign(
+        &["gpu", "2", s(&out)],
+        &env,
+        &[("DEVICE", "cpu"), ("COOLDOWN_MINUTES", "1")],
+    );
+    assert!(ok_ && text.contains("cool-down complete"), "{text}");
+    let at = state_step(&work.join("run"));
+    let branch = work.join(format!("cooldown-{at}"));
+    let end = state_step(&branch);
+    assert!(end > at, "{text}");
+    // The branch's rate ends near zero: its last row's lr is below a tenth of its first's.
+    let lr = log_column(&branch, 1);
+    let (first, last) = (lr[at as usize], lr[lr.len() - 1]);
+    assert!(last < 0.1 * first, "{first} → {last}");
+    for f in [
+        "state.json",
+        "last.safetensors",
+        "cooldown.safetensors",
+        "cooldown_log.csv",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing: {text}");
+    }
+    assert_eq!(
+        fs::read(out.join("cooldown.safetensors")).unwrap(),
+        fs::read(branch.join("last.safetensors")).unwrap()
+    );
 }
