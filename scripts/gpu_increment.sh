@@ -6,7 +6,7 @@
 #   scripts/gpu_increment.sh PINS OUTDIR SECONDS [DEVICE]
 #
 # PINS is a pins binary built with `--features wgpu` (DEVICE wgpu, the default) or `cuda`.
-# OUTDIR receives at most 8 files: log.txt (this script's output, the status included),
+# OUTDIR receives log.txt (this script's output, the status included),
 # bench_live.md, and the training's state.json, model-*.bpk, optim-*.bin, log.csv,
 # last.safetensors and average.safetensors (the mean of the session's snapshots) in
 # OUTDIR/train (continue here with CHECKPOINT=OUTDIR/train scripts/train_campaign.sh), and with
