@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
 use super::shape::Shape;
-use super::texture::sample_bilinear;
+use super::texture::add_bilinear;
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
 
@@ -135,10 +135,7 @@ impl LayeredScene {
             }
             Fill::Texture { image, origin } => {
                 let (tx, ty) = ((lx + origin.0) as f32, (ly + origin.1) as f32);
-                let tc = image.channels();
-                for (c, o) in out.iter_mut().enumerate() {
-                    *o += sample_bilinear(image, c.min(tc - 1), tx, ty);
-                }
+                add_bilinear(image, tx, ty, out);
             }
         }
     }

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
-use super::texture::sample_bilinear;
+use super::texture::add_bilinear;
 use crate::error::{Error, Result};
 use crate::rng;
 use crate::types::Image;
@@ -175,9 +175,7 @@ fn resample(
                         u
                     };
                     let (px, py) = ((crop.x + u - 0.5) as f32, (crop.y + v - 0.5) as f32);
-                    for (c, out) in rgb.iter_mut().enumerate() {
-                        *out += sample_bilinear(photo, c, px, py);
-                    }
+                    add_bilinear(photo, px, py, &mut rgb);
                 }
             }
             let k = (taps * taps) as f32;

@@ -190,16 +190,64 @@ pub fn procedural(seed: u64, channels: usize, height: usize, width: usize, scale
 /// Bilinear sample of channel `c` at (x, y) in pixel units, mirrored outside the raster.
 #[inline]
 pub fn sample_bilinear(img: &Image, c: usize, x: f32, y: f32) -> f32 {
-    let (h, w) = (img.height(), img.width());
-    let (xf, yf) = (x.floor(), y.floor());
-    let (tx, ty) = (x - xf, y - yf);
-    let m = |i: f32, n: usize| crate::imaging::convolve::mirror(i as isize, n);
-    let (x0, x1) = (m(xf, w), m(xf + 1.0, w));
-    let (y0, y1) = (m(yf, h), m(yf + 1.0, h));
-    let p = img.plane(c);
-    let top = p[y0 * w + x0] * (1.0 - tx) + p[y0 * w + x1] * tx;
-    let bottom = p[y1 * w + x0] * (1.0 - tx) + p[y1 * w + x1] * tx;
-    top * (1.0 - ty) + bottom * ty
+    Tap::at(img.width(), img.height(), x, y).sample(img.plane(c))
+}
+
+/// Adds the bilinear sample at (x, y) of each channel to `out`: `out[c]` takes channel
+/// `min(c, C − 1)` (a grey texture fills every channel). The same values as
+/// [`sample_bilinear`] channel by channel, with the corners found once.
+#[inline]
+pub fn add_bilinear(img: &Image, x: f32, y: f32, out: &mut [f32]) {
+    let tap = Tap::at(img.width(), img.height(), x, y);
+    let last = img.channels() - 1;
+    for (c, o) in out.iter_mut().enumerate() {
+        *o += tap.sample(img.plane(c.min(last)));
+    }
+}
+
+/// The four corners of a bilinear sample in a raster of width `w` (indices into a plane) and
+/// the weights of the right and lower ones.
+struct Tap {
+    i00: usize,
+    i01: usize,
+    i10: usize,
+    i11: usize,
+    tx: f32,
+    ty: f32,
+}
+
+impl Tap {
+    /// The corners of (x, y) in a `w × h` raster, mirrored outside it.
+    #[inline]
+    fn at(w: usize, h: usize, x: f32, y: f32) -> Self {
+        let (xf, yf) = (x.floor(), y.floor());
+        // Both neighbours inside: the mirror is the identity (the common case, without its
+        // remainder).
+        let pair = |f: f32, n: usize| {
+            if f >= 0.0 && f + 1.0 < n as f32 {
+                (f as usize, f as usize + 1)
+            } else {
+                let m = |i: f32| crate::imaging::convolve::mirror(i as isize, n);
+                (m(f), m(f + 1.0))
+            }
+        };
+        let ((x0, x1), (y0, y1)) = (pair(xf, w), pair(yf, h));
+        Self {
+            i00: y0 * w + x0,
+            i01: y0 * w + x1,
+            i10: y1 * w + x0,
+            i11: y1 * w + x1,
+            tx: x - xf,
+            ty: y - yf,
+        }
+    }
+
+    #[inline]
+    fn sample(&self, p: &[f32]) -> f32 {
+        let top = p[self.i00] * (1.0 - self.tx) + p[self.i01] * self.tx;
+        let bottom = p[self.i10] * (1.0 - self.tx) + p[self.i11] * self.tx;
+        top * (1.0 - self.ty) + bottom * self.ty
+    }
 }
 
 #[cfg(test)]
@@ -224,6 +272,35 @@ mod tests {
         }
         let grey = procedural(11, 1, 8, 8, 16.0);
         assert_eq!(grey.channels(), 1);
+    }
+
+    /// All channels at once equal each channel alone, bit for bit, inside, on the edges and
+    /// mirrored outside; a grey texture fills every channel.
+    #[test]
+    fn all_channels_at_once_equal_each_alone() {
+        let img = procedural(5, 3, 9, 13, 8.0);
+        let grey = procedural(6, 1, 9, 13, 8.0);
+        for (x, y) in [
+            (0.0, 0.0),
+            (3.25, 4.5),
+            (11.9, 7.99),
+            (12.0, 8.0),
+            (-2.3, 1.1),
+            (30.7, -9.2),
+        ] {
+            let mut out = [0.5f32; 3];
+            add_bilinear(&img, x, y, &mut out);
+            for (c, v) in out.iter().enumerate() {
+                assert_eq!(
+                    *v,
+                    0.5 + sample_bilinear(&img, c, x, y),
+                    "({x}, {y}) channel {c}"
+                );
+            }
+            let mut out = [0.0f32; 3];
+            add_bilinear(&grey, x, y, &mut out);
+            assert_eq!(out, [sample_bilinear(&grey, 0, x, y); 3]);
+        }
     }
 
     #[test]
