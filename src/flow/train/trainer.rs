@@ -1,4 +1,5 @@
-//! `pins train`: the MMS network on a generated dataset with the sequence loss of Eq. S16,
+//! `pins train`: the MMS network on a generated dataset, or on pairs made on the fly
+//! ([`super::stream`]), with the sequence loss of Eq. S16,
 //! AdamW, the one-cycle schedule and global gradient clipping; held-out validation on a
 //! schedule; atomic checkpoints from which `--resume` continues exactly (same step, optimiser
 //! state, schedule and data order); a CSV log and a PNG plot of the curves. A session ends at
