@@ -39,9 +39,15 @@ say "bench-live exited"
 # The training: whole minutes of what is left, less a minute for its last step and the copies.
 minutes=$(((SECONDS_TOTAL - ($(date +%s) - t0) - 60) / 60))
 [ "$minutes" -gt 9 ] && minutes=9
+cool=${COOLDOWN_MINUTES:-0}
+if [ "$minutes" -ge 1 ] && [[ "$cool" =~ ^[0-9]+$ ]] && [ "$((10#$cool))" -ge "$minutes" ]; then
+    say "no time to cool down ($cool of $minutes min): training alone"
+    cool=0
+fi
 if [ "$minutes" -ge 1 ]; then
     say "training for $minutes min"
-    PINS="$PINS" DEVICE="$DEVICE" scripts/train_campaign.sh gpu "$minutes" "$OUTDIR/train"
+    PINS="$PINS" DEVICE="$DEVICE" COOLDOWN_MINUTES="$cool" \
+        scripts/train_campaign.sh gpu "$minutes" "$OUTDIR/train"
     rm -f "$OUTDIR/train/best.safetensors" "$OUTDIR/train/status.txt"
 else
     say "no time left to train"

@@ -231,15 +231,21 @@ outdir=${2:?usage: train_campaign.sh gpu MINUTES OUTDIR}
 mkdir -p "$outdir"
 t0=$(date +%s)
 cool=${COOLDOWN_MINUTES:-0}
-[[ "$cool" =~ ^[0-9]+$ ]] && [ "$cool" -lt "$minutes" ] ||
+[[ "$cool" =~ ^[0-9]+$ ]] && [ "$((10#$cool))" -lt "$minutes" ] ||
     die "COOLDOWN_MINUTES must be a whole number of minutes below MINUTES ($minutes), got '$cool'"
+cool=$((10#$cool))
 # What is left of the minutes once started, less 30 s for the last step and the copy, less the
 # cool-down's minutes.
 left=$((minutes * 60 - (t0 - t_script) - 30 - cool * 60))
-[ "$left" -ge 30 ] || die "only ${left} s are left of ${minutes} min for the run"
+[ "$left" -ge 10 ] || die "only ${left} s are left of ${minutes} min for the run"
 echo "training for at most ${left} s on ${DEVICE:-wgpu}"
 mkdir -p "$WORK/snapshots"
 before=" $(cd "$WORK/snapshots" && echo *.safetensors) "
+# The step this session starts at (its own rows of the log come after it).
+from_step=0
+if [ -f "$RUN/checkpoint/state.json" ]; then
+    from_step=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$RUN/checkpoint/state.json")
+fi
 "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$RUN" --device "${DEVICE:-wgpu}" \
     "${start[@]}" --time-budget "${left}s" --snapshots "$WORK/snapshots"
 echo "trained for $(($(date +%s) - t0)) s on ${DEVICE:-wgpu}"
@@ -262,22 +268,27 @@ fi
 # The cool-down: as many steps as 80 % of its minutes hold at the session's median step (the
 # rest for its validations and the last step), at most the steps the run has left.
 if [ "$cool" -gt 0 ]; then
-    read -r at steps < <(python3 - "$state" "$RUN/log.csv" "$cool" <<'PY'
+    plan=$(python3 - "$state" "$RUN/log.csv" "$cool" "$from_step" <<'PY'
 import json, statistics, sys
-state, log, cool = sys.argv[1], sys.argv[2], int(sys.argv[3])
+state, log, cool, since = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 s = json.load(open(state))
 rows = [l.split(",") for l in open(log).read().splitlines()[1:]]
-ms = [float(r[5]) for r in rows[-20:] if len(r) > 5 and r[5]]
+# This session's steps only (a carried log holds other machines' rows before them).
+ms = [float(r[5]) for r in rows if len(r) > 5 and r[5] and int(r[0]) > since][-20:]
 n = int(0.8 * cool * 60e3 / statistics.median(ms)) if ms else 0
 print(s["step"], max(0, min(n, s["config"]["steps"] - s["step"])))
 PY
-    )
-    if [ "$steps" -ge 1 ]; then
+    ) || die "cannot plan the cool-down from $state and $RUN/log.csv"
+    read -r at steps <<<"$plan"
+    budget=$((minutes * 60 - ($(date +%s) - t_script) - 20))
+    if [ "$budget" -lt 30 ]; then
+        echo "no cool-down: only ${budget} s are left of ${minutes} min"
+    elif [ "$steps" -ge 1 ]; then
         branch="$WORK/cooldown-$at"
         echo "cooling down on ${DEVICE:-wgpu}: --branch-from $RUN → $branch over $steps steps"
         "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
             --branch-from "$RUN" --cooldown "$steps" --device "${DEVICE:-wgpu}" \
-            --time-budget "$((minutes * 60 - ($(date +%s) - t_script) - 20))s"
+            --time-budget "${budget}s"
         cp "$branch/last.safetensors" "$outdir/cooldown.safetensors"
         cp "$branch/log.csv" "$outdir/cooldown_log.csv"
         done_at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$branch/checkpoint/state.json")

@@ -208,7 +208,7 @@ pub struct DataFingerprint {
 impl DataFingerprint {
     /// "N pairs (fingerprint abcdef012345)", or "pairs made on the fly (fingerprint …)".
     pub fn describe(&self) -> String {
-        let short = &self.sha256[..12.min(self.sha256.len())];
+        let short = self.sha256.get(..12).unwrap_or(&self.sha256);
         if self.pairs == 0 {
             format!("pairs made on the fly (fingerprint {short})")
         } else {

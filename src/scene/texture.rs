@@ -274,32 +274,56 @@ mod tests {
         assert_eq!(grey.channels(), 1);
     }
 
-    /// All channels at once equal each channel alone, bit for bit, inside, on the edges and
-    /// mirrored outside; a grey texture fills every channel.
+    /// The mirror-only sample the corners' fast path replaced, kept as the reference.
+    fn mirrored_sample(img: &Image, c: usize, x: f32, y: f32) -> f32 {
+        let (h, w) = (img.height(), img.width());
+        let (xf, yf) = (x.floor(), y.floor());
+        let (tx, ty) = (x - xf, y - yf);
+        let m = |i: f32, n: usize| crate::imaging::convolve::mirror(i as isize, n);
+        let (x0, x1) = (m(xf, w), m(xf + 1.0, w));
+        let (y0, y1) = (m(yf, h), m(yf + 1.0, h));
+        let p = img.plane(c);
+        let top = p[y0 * w + x0] * (1.0 - tx) + p[y0 * w + x1] * tx;
+        let bottom = p[y1 * w + x0] * (1.0 - tx) + p[y1 * w + x1] * tx;
+        top * (1.0 - ty) + bottom * ty
+    }
+
+    /// One channel and all channels at once give the mirror-only sample's bits: inside, on
+    /// and just inside the last row and column, mirrored outside, at −0, far away, and on
+    /// one-pixel rasters; a grey texture fills every channel.
     #[test]
-    fn all_channels_at_once_equal_each_alone() {
-        let img = procedural(5, 3, 9, 13, 8.0);
-        let grey = procedural(6, 1, 9, 13, 8.0);
-        for (x, y) in [
-            (0.0, 0.0),
-            (3.25, 4.5),
-            (11.9, 7.99),
-            (12.0, 8.0),
-            (-2.3, 1.1),
-            (30.7, -9.2),
-        ] {
-            let mut out = [0.5f32; 3];
-            add_bilinear(&img, x, y, &mut out);
-            for (c, v) in out.iter().enumerate() {
-                assert_eq!(
-                    *v,
-                    0.5 + sample_bilinear(&img, c, x, y),
-                    "({x}, {y}) channel {c}"
-                );
+    fn samples_equal_the_mirrored_reference_bit_for_bit() {
+        let below = |v: f32| f32::from_bits(v.to_bits() - 1);
+        let xs = [
+            0.0,
+            -0.0,
+            3.25,
+            11.0,
+            12.0,
+            below(12.0),
+            below(11.0),
+            -2.3,
+            30.7,
+            -1e9,
+            1e30,
+        ];
+        let ys = [0.0, -0.0, 4.5, 7.0, 8.0, below(8.0), -9.2, 1e9];
+        for img in [procedural(5, 3, 9, 13, 8.0), procedural(7, 3, 1, 1, 8.0)] {
+            let grey = procedural(6, 1, img.height(), img.width(), 8.0);
+            for &x in &xs {
+                for &y in &ys {
+                    let mut out = [0.5f32; 3];
+                    add_bilinear(&img, x, y, &mut out);
+                    for (c, v) in out.iter().enumerate() {
+                        let want = mirrored_sample(&img, c, x, y);
+                        assert_eq!(sample_bilinear(&img, c, x, y).to_bits(), want.to_bits());
+                        assert_eq!(v.to_bits(), (0.5 + want).to_bits(), "({x}, {y}) {c}");
+                    }
+                    let mut out = [0.0f32; 3];
+                    add_bilinear(&grey, x, y, &mut out);
+                    assert_eq!(out, [mirrored_sample(&grey, 0, x, y); 3]);
+                }
             }
-            let mut out = [0.0f32; 3];
-            add_bilinear(&grey, x, y, &mut out);
-            assert_eq!(out, [sample_bilinear(&grey, 0, x, y); 3]);
         }
     }
 

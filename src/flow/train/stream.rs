@@ -1,8 +1,10 @@
 //! Training pairs made on the fly (Note S11's training data, unbounded): a mix of generator
 //! configs (chairs scenes through the metalens camera), each drawn with its weight, every pair
-//! made in memory when a step needs it and never seen twice. Pair `i` of a source is the
-//! generator's sample `i` — the bytes `pins generate` would write for it — so the data of a
-//! step is a function of (seed, step) alone and `--resume` replays it exactly; no disk is used.
+//! made in memory when a step needs it and never seen twice. Slot `b` of step `s` draws a source
+//! by weight and is that generator's sample `count + s·batch + b` — the bytes `pins generate`
+//! would write for it; the indices start past the config's `count`, so a stream never remakes
+//! the pairs a folder of the same config holds. The data of a step is a function of (seed,
+//! step) alone and `--resume` replays it exactly; no disk is used.
 //!
 //! The stream file (`--data mix.json`):
 //!
@@ -11,10 +13,15 @@
 //!              {"generator": "data/7_small.json", "weight": 800}]}
 //! ```
 //!
-//! Paths are relative to the stream file; a generator's `count` is not used (a stream has no
-//! end). The validation pairs are a fixed set, apart from every training pair: pair `j` comes
-//! from the source whose share of the weights holds `(j + ½) / n` (each source in proportion),
-//! at sample index `VAL_BASE + j`.
+//! Paths are relative to the stream file. The validation pairs are a fixed set, apart from every
+//! training pair: pair `j` comes from the source whose share of the weights holds `(j + ½) / n`
+//! (each source in proportion), at sample index `VAL_BASE + j`.
+//!
+//! The fingerprint (kept by checkpoints, so that a resume on other data is refused) hashes each
+//! source's share of the weights, its config as parsed (defaults filled in, paths as written),
+//! its photographs' names and pixels, and the bytes of one probe sample
+//! (`PROBE`) made when the stream opens: what the configs do not say — the PSF file, the
+//! generator's code, the machine's arithmetic — shows in the probe.
 
 use std::path::{Path, PathBuf};
 
@@ -27,9 +34,13 @@ use crate::flow::data::DataFingerprint;
 use crate::rng;
 use crate::types::{Flow, Image};
 
-/// The first sample index of the validation pairs; training pairs use `step · batch + slot`,
-/// far below it.
+/// The first sample index of the validation pairs; training pairs use `count + step · batch +
+/// slot`, far below it.
 pub const VAL_BASE: usize = 1 << 40;
+
+/// The sample index of each source's probe, hashed into the fingerprint (no training or
+/// validation pair uses it).
+pub const PROBE: usize = VAL_BASE - 1;
 
 /// One source of a stream file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -52,6 +63,8 @@ pub struct StreamConfig {
 pub struct Stream {
     path: PathBuf,
     generators: Vec<Generator>,
+    /// Each source's first training index: its config's `count`.
+    first: Vec<usize>,
     /// Cumulative shares of the weights, ending at 1.
     cumulative: Vec<f64>,
     fingerprint: DataFingerprint,
@@ -61,10 +74,8 @@ pub struct Stream {
 
 /// Whether `path` names a stream file rather than a folder of pairs.
 pub fn is_stream_file(path: &Path) -> bool {
-    path.is_file()
-        && path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
 }
 
 impl Stream {
@@ -77,7 +88,14 @@ impl Stream {
         }
         let base = path.parent().unwrap_or(Path::new(""));
         let total: f64 = config.sources.iter().map(|s| s.weight).sum();
+        if !total.is_finite() {
+            return Err(crate::io::in_config(
+                path,
+                format!("sources: the weights add up to {total}"),
+            ));
+        }
         let mut generators = Vec::new();
+        let mut first = Vec::new();
         let mut cumulative = Vec::new();
         let mut acc = 0.0;
         let mut smallest = (usize::MAX, usize::MAX);
@@ -103,10 +121,10 @@ impl Stream {
                 ));
             };
             smallest = (smallest.0.min(chairs.height), smallest.1.min(chairs.width));
-            // The data's identity: the config as written (paths as the file gives them, so
-            // the checkout may move) and the photographs it reads (names and sizes).
-            let written: serde_json::Value = crate::io::read_json(&file)?;
-            hash.update(source.weight.to_le_bytes());
+            // The data's identity: the share, the config as parsed with its paths as written
+            // (so the checkout may move), the photographs, a probe.
+            let written: GeneratorConfig = crate::io::read_json(&file)?;
+            hash.update((source.weight / total).to_le_bytes());
             hash.update(
                 serde_json::to_string(&written)
                     .unwrap_or_default()
@@ -115,15 +133,21 @@ impl Stream {
             hash.update([0]);
             if let Some(photos) = &chairs.photos {
                 for p in photos.library()?.iter() {
-                    let (c, h, w) = p.image.shape();
                     hash.update(p.name.as_bytes());
                     hash.update([0]);
-                    for d in [c, h, w] {
-                        hash.update((d as u64).to_le_bytes());
-                    }
+                    hash_floats(&mut hash, p.image.data());
                 }
             }
-            generators.push(Generator::new(generator_config)?);
+            first.push(generator_config.count);
+            let generator = Generator::new(generator_config)?;
+            let (a, b, flow) = generator.pair(PROBE)?;
+            for plane in [a.data(), b.data()] {
+                hash_floats(&mut hash, plane);
+            }
+            if let Some(f) = flow {
+                hash_floats(&mut hash, f.data());
+            }
+            generators.push(generator);
             acc += source.weight / total;
             cumulative.push(acc);
         }
@@ -134,6 +158,7 @@ impl Stream {
         Ok(Self {
             path: path.to_path_buf(),
             generators,
+            first,
             cumulative,
             fingerprint: DataFingerprint {
                 pairs: 0,
@@ -168,7 +193,7 @@ impl Stream {
     }
 
     /// Training pair `slot` of step `step` (of `batch` pairs): its source drawn with `r` by
-    /// weight, its sample index `step · batch + slot`.
+    /// weight, its sample index `count + step · batch + slot`.
     pub fn train_pair(
         &self,
         step: usize,
@@ -177,7 +202,7 @@ impl Stream {
         r: &mut rng::Rng,
     ) -> Result<(Image, Image, Flow)> {
         let k = self.source_at(r.random_range(0.0..1.0));
-        self.make(k, step * batch + slot)
+        self.make(k, self.first[k] + step * batch + slot)
     }
 
     /// Validation pair `j` of `n`: from the source whose share holds `(j + ½) / n`, at sample
@@ -197,6 +222,16 @@ impl Stream {
             flow,
         ))
     }
+}
+
+/// Adds the bytes of `values` (little-endian) to `hash`.
+fn hash_floats(hash: &mut sha2::Sha256, values: &[f32]) {
+    use sha2::Digest;
+    let mut bytes = Vec::with_capacity(4 * values.len());
+    for v in values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    hash.update(&bytes);
 }
 
 #[cfg(test)]
@@ -283,6 +318,18 @@ mod tests {
         let text = r#"{"sources": [{"generator": "a.json", "weight": 1}, {"generator": "b.json", "weight": 3}]}"#;
         let moved_mix = write(&moved, "mix.json", text);
         assert_eq!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
+        // The scale of the weights changes neither the pairs nor the fingerprint; a seed or a
+        // count (where the training indices start) does.
+        let doubled = r#"{"sources": [{"generator": "a.json", "weight": 2.0}, {"generator": "b.json", "weight": 6}]}"#;
+        write(&moved, "mix.json", doubled);
+        assert_eq!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
+        write(
+            &moved,
+            "a.json",
+            &SMALL.replace("\"count\": 1", "\"count\": 7"),
+        );
+        assert_ne!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
+        write(&moved, "a.json", SMALL);
         write(
             &moved,
             "b.json",
@@ -291,6 +338,31 @@ mod tests {
         assert_ne!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
         let _ = std::fs::remove_dir_all(&dir);
         let _ = std::fs::remove_dir_all(&moved);
+    }
+
+    /// A source's training pairs start past its config's count: a stream never remakes the
+    /// pairs that a folder of the same config holds.
+    #[test]
+    fn training_pairs_start_past_the_count() {
+        let dir = folder("count");
+        write(
+            &dir,
+            "a.json",
+            &SMALL.replace("\"count\": 1", "\"count\": 5"),
+        );
+        let mix = write(
+            &dir,
+            "mix.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1}]}"#,
+        );
+        let stream = Stream::open(&mix).expect("open");
+        let generator = Generator::new(GeneratorConfig::from_file(&dir.join("a.json")).unwrap())
+            .expect("generator");
+        let mut r = rng::stream(1, &[0]);
+        let (a, _, _) = stream.train_pair(2, 1, 3, &mut r).expect("pair");
+        let (g, _, _) = generator.pair(5 + 2 * 3 + 1).expect("sample");
+        assert_eq!(a.data(), crate::flow::data::to_rgb(g).data());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// What cannot make training pairs is refused with the file and the reason.
@@ -326,11 +398,20 @@ mod tests {
                 "unknown field",
             ),
             (r#"{"source": []}"#, "unknown field"),
+            (
+                r#"{"sources": [{"generator": "a.json", "weight": 1e308}, {"generator": "a.json", "weight": 1e308}]}"#,
+                "add up to inf",
+            ),
         ] {
             let mix = write(&dir, "mix.json", text);
             let e = Stream::open(&mix).err().expect(text).to_string();
             assert!(e.contains(needle), "{text}: {e}");
         }
+        let e = Stream::open(&dir.join("missing.json"))
+            .err()
+            .expect("missing")
+            .to_string();
+        assert!(e.contains("missing.json"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
