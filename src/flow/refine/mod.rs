@@ -44,9 +44,14 @@ pub struct RefineConfig {
     pub omega: f32,
 }
 
-// The defaults are OpenCV's VariationalRefinement settings in its DIS presets (α 20, δ 5, γ
-// 10, 5 fixed-point iterations of 5 SOR sweeps, ω 1.6); the scales were chosen on the trend
-// of the real-pair benchmark (1/4 to full resolution; from 1/8 the KITTI pair got worse).
+// The energy's weights and iteration counts are OpenCV's VariationalRefinement settings in its
+// DIS presets (α 20, δ 5, γ 10, 5 fixed-point iterations of 5 SOR sweeps). Its ω = 1.6 suits
+// DIS's start, its patch search, already within a fraction of a pixel; the network's start is
+// off by up to a pixel (it reports almost nothing of a sub-pixel motion), and from there the
+// same sweeps at ω 1.6 stop far short of the energy's minimum. At ω 1.9 they reach it at the
+// same cost (`docs/flow.md`, measured on pairs of the training photographs). The scales were
+// chosen on the trend of the real-pair benchmark (1/4 to full resolution; from 1/8 the KITTI
+// pair got worse).
 fn default_scales() -> Vec<u32> {
     vec![4, 2, 1]
 }
@@ -66,7 +71,7 @@ fn default_sor() -> usize {
     5
 }
 fn default_omega() -> f32 {
-    1.6
+    1.9
 }
 
 impl Default for RefineConfig {
@@ -307,6 +312,49 @@ mod tests {
         let after = epe(&out, du, dv, 8);
         assert!(before > 0.5, "{before}");
         assert!(after < 0.1, "EPE {before:.3} → {after:.3}");
+    }
+
+    /// The default sweeps solve the energy: from the start the network leaves for a sub-pixel
+    /// motion (nothing reported, a smooth error up to a pixel), the default result is as near
+    /// the truth as sixteen times the iterations get, and near their flow. ω = 1.6 (OpenCV's,
+    /// which starts from DIS's patch search) stops far short of both here.
+    #[test]
+    fn default_sweeps_reach_the_minimum_from_a_network_start() {
+        let (h, w) = (96, 128);
+        let (du, dv) = (0.6f32, -0.45f32);
+        let (a, b) = moved_pair(h, w, du, dv);
+        let start = Flow::zeros(h, w);
+        let converged = RefineConfig {
+            fixed_point_iters: 20,
+            sor_iters: 20,
+            ..RefineConfig::default()
+        };
+        let run = |cfg: &RefineConfig| refine(&a, &b, &start, cfg).unwrap();
+        let (best, default) = (run(&converged), run(&RefineConfig::default()));
+        let opencv = run(&RefineConfig {
+            omega: 1.6,
+            ..RefineConfig::default()
+        });
+        let gap = |f: &Flow| {
+            let d = f.data().iter().zip(best.data()).map(|(x, y)| (x - y).abs());
+            d.sum::<f32>() / f.data().len() as f32
+        };
+        let (e_best, e_default, e_opencv) = (
+            epe(&best, du, dv, 8),
+            epe(&default, du, dv, 8),
+            epe(&opencv, du, dv, 8),
+        );
+        eprintln!(
+            "EPE converged {e_best:.4}, default {e_default:.4}, ω 1.6 {e_opencv:.4}; \
+             mean gap to converged {:.4} and {:.4}",
+            gap(&default),
+            gap(&opencv)
+        );
+        assert!(
+            e_default < 1.2 * e_best + 0.01,
+            "{e_default} against {e_best}"
+        );
+        assert!(gap(&default) < 0.5 * gap(&opencv));
     }
 
     /// The result does not depend on the number of threads (red–black sweeps).
