@@ -66,9 +66,13 @@ def response(pairs):
         epe = np.linalg.norm(e[sel] - t[sel], axis=1).mean()
         print(f"| {band_name(lo, hi)} | {sel.sum()} | {epe:.3f} | {np.median(along):.2f} |")
     for c, name in ((0, "u"), (1, "v")):
+        if np.ptp(t[:, c]) == 0:
+            # One true value (a pure translation): no slope to fit.
+            print(f"{name}: true {t[0, c]:+.3f} px everywhere, estimate mean {e[:, c].mean():+.3f} px")
+            continue
         a = np.vstack([t[:, c], np.ones(len(t))]).T
         slope, offset = np.linalg.lstsq(a, e[:, c], rcond=None)[0]
-        corr = np.corrcoef(t[:, c], e[:, c])[0, 1]
+        corr = np.corrcoef(t[:, c], e[:, c])[0, 1] if np.ptp(e[:, c]) > 0 else float("nan")
         print(f"{name}: slope {slope:.2f}, offset {offset:+.3f} px, correlation {corr:.2f}")
 
 
