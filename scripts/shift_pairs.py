@@ -13,7 +13,7 @@ the frame's edges; what is left is the pair. Both are rounded to 8 bits as a cam
     scripts/shift_pairs.py IMAGE --out DIR [--shifts 0.125,0.25,0.5,1,2,4] [--angle DEG]
 
 One pair per shift, moved along --angle degrees from +x (0: right; image y points down).
-Needs numpy and OpenCV (cv2) for reading and writing PNGs.
+Needs numpy, and Pillow or OpenCV (cv2) for reading and writing PNGs.
 """
 
 import argparse
@@ -31,6 +31,43 @@ def write_flo(path, flow):
         np.array([202021.25], np.float32).tofile(f)
         np.array([w, h], np.int32).tofile(f)
         flow.astype(np.float32).tofile(f)
+
+
+def image_io():
+    """(read, write) of 8-bit RGB arrays (H, W, 3) by Pillow, else OpenCV; None if neither."""
+    try:
+        from PIL import Image
+
+        def read(path):
+            try:
+                with Image.open(path) as im:
+                    return np.asarray(im.convert("RGB"))
+            except OSError:
+                return None
+
+        def write(path, a):
+            try:
+                Image.fromarray(a, "RGB").save(path)
+                return True
+            except OSError:
+                return False
+
+        return read, write
+    except ImportError:
+        pass
+    try:
+        import cv2
+    except ImportError:
+        return None
+
+    def read(path):
+        a = cv2.imread(path, cv2.IMREAD_COLOR)
+        return None if a is None else a[..., ::-1]
+
+    def write(path, a):
+        return cv2.imwrite(path, np.ascontiguousarray(a[..., ::-1]))
+
+    return read, write
 
 
 def shifted(img, du, dv):
@@ -52,17 +89,17 @@ def main():
     ap.add_argument("--shifts", default="0.125,0.25,0.5,1,2,4")
     ap.add_argument("--angle", type=float, default=0.0)
     a = ap.parse_args()
-    try:
-        import cv2
-    except ImportError:
-        sys.exit("shift_pairs: needs OpenCV (pip install opencv-python-headless)")
+    io = image_io()
+    if io is None:
+        sys.exit("shift_pairs: needs Pillow or OpenCV to read and write PNGs (pip install pillow)")
+    read, write = io
     try:
         shifts = [float(s) for s in a.shifts.split(",")]
     except ValueError:
         sys.exit(f"shift_pairs: --shifts must be numbers separated by commas, got {a.shifts!r}")
     if not shifts or any(not math.isfinite(s) for s in shifts):
         sys.exit(f"shift_pairs: --shifts must be finite numbers, got {a.shifts!r}")
-    img = cv2.imread(a.image, cv2.IMREAD_COLOR)
+    img = read(a.image)
     if img is None:
         sys.exit(f"shift_pairs: cannot read {a.image} as an image")
     margin = max(16, math.ceil(max(abs(s) for s in shifts)) + 8)
@@ -81,7 +118,7 @@ def main():
         stem = os.path.join(a.out, f"{i:05d}")
         for name, frame in (("img1", src), ("img2", second)):
             q = np.clip(np.round(frame[crop]), 0, 255).astype(np.uint8)
-            if not cv2.imwrite(f"{stem}_{name}.png", q):
+            if not write(f"{stem}_{name}.png", q):
                 sys.exit(f"shift_pairs: cannot write {stem}_{name}.png")
         ch, cw = h - 2 * margin, w - 2 * margin
         flow = np.empty((ch, cw, 2), np.float32)
