@@ -91,18 +91,19 @@ fn translations_carry_their_flow_and_the_network_stages_follow_them() {
         );
     }
 
-    let stages = repo("scripts/motion_stages.py");
+    let script = repo("scripts/motion_stages.py");
+    let stages = |weights: &Path, data: &Path| {
+        let args = [
+            script.as_path(),
+            Path::new("--weights"),
+            weights,
+            Path::new("--data"),
+            data,
+        ];
+        run(&py, &args.map(|a| a.to_str().unwrap()))
+    };
     let weights = repo("datasets/weights/mms-small-real.safetensors");
-    let out = run(
-        &py,
-        &[
-            stages.to_str().unwrap(),
-            "--weights",
-            weights.to_str().unwrap(),
-            "--data",
-            data_s,
-        ],
-    );
+    let out = stages(&weights, &data);
     assert!(
         out.status.success(),
         "{}",
@@ -137,28 +138,10 @@ fn translations_carry_their_flow_and_the_network_stages_follow_them() {
     // A folder without flows, and weights that are not weights, are refused with the reason.
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
-    let out = run(
-        &py,
-        &[
-            stages.to_str().unwrap(),
-            "--weights",
-            weights.to_str().unwrap(),
-            "--data",
-            empty.to_str().unwrap(),
-        ],
-    );
+    let out = stages(&weights, &empty);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no *_flow.flo"));
-    let out = run(
-        &py,
-        &[
-            stages.to_str().unwrap(),
-            "--weights",
-            photo.to_str().unwrap(),
-            "--data",
-            data_s,
-        ],
-    );
+    let out = stages(&photo, &data);
     assert!(!out.status.success());
     assert!(!String::from_utf8_lossy(&out.stderr).contains("Traceback"));
 }
