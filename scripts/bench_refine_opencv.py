@@ -2,7 +2,7 @@
 """OpenCV's VariationalRefinement timed on the pair `pins bench-flow --mode refine --pair-out DIR`
 wrote (frame1.png, frame2.png, start.flo, truth.flo), with the settings of pins' defaults
 (alpha 20, delta 5, gamma 10, 5 fixed-point iterations of 5 SOR sweeps, omega 1.9; OpenCV's
-own omega is 1.6) at full resolution only (OpenCV's refinement has no pyramid). Prints one JSON line like pins': median ms
+own omega is 1.6, and it has no local smoothness weight, pins' kappa) at full resolution only (OpenCV's refinement has no pyramid). Prints one JSON line like pins': median ms
 over --reps runs after a warm-up, and the end-point error before and after (pixels at least 8 px
 from the border).
 

@@ -23,14 +23,26 @@ pub struct Terms {
     pub n1: Vec<f32>,
     pub nx: Vec<f32>,
     pub ny: Vec<f32>,
+    /// The local smoothness weight exp(−κ·|∇I|/255) of each pixel (DeepFlow's α(x)): the flow
+    /// may change across an image edge, where a moving object's boundary is likely to lie.
+    pub smooth: Vec<f32>,
 }
 
 /// ζ of the normalisation: keeps flat regions (gradient ≈ 0) from dividing by zero; in 8-bit
 /// units it matters only where the gradient is below about 0.1 grey level per pixel.
 const ZETA: f32 = 0.1;
 
-/// The terms of `i0` and `i1` (`[h·w]` grey planes, 8-bit units) around the flow `(u, v)`.
-pub fn terms(i0: &[f32], i1: &[f32], u: &[f32], v: &[f32], h: usize, w: usize) -> Terms {
+/// The terms of `i0` and `i1` (`[h·w]` grey planes, 8-bit units) around the flow `(u, v)`, with
+/// the local smoothness weight of `kappa` (κ; 0: the same weight everywhere).
+pub fn terms(
+    i0: &[f32],
+    i1: &[f32],
+    u: &[f32],
+    v: &[f32],
+    h: usize,
+    w: usize,
+    kappa: f32,
+) -> Terms {
     let n = h * w;
     let (warped, inside) = warp(i1, u, v, h, w);
     let (i0x, i0y) = (deriv_x(i0, h, w), deriv_y(i0, h, w));
@@ -63,7 +75,13 @@ pub fn terms(i0: &[f32], i1: &[f32], u: &[f32], v: &[f32], h: usize, w: usize) -
             ny[i] = 1.0 / (ixy[i] * ixy[i] + iyy[i] * iyy[i] + z2);
         }
     }
+    let smooth = ix
+        .iter()
+        .zip(&iy)
+        .map(|(x, y)| (-kappa * (x * x + y * y).sqrt() / 255.0).exp())
+        .collect();
     Terms {
+        smooth,
         ix,
         iy,
         iz,
@@ -208,7 +226,7 @@ mod tests {
         let i1: Vec<f32> = (0..h * w)
             .map(|i| f((i % w) as f32 - 1.0, (i / w) as f32 - 2.0))
             .collect();
-        let t = terms(&i0, &i1, &vec![1.0; h * w], &vec![2.0; h * w], h, w);
+        let t = terms(&i0, &i1, &vec![1.0; h * w], &vec![2.0; h * w], h, w, 0.0);
         for y in 0..h - 2 {
             for x in 0..w - 1 {
                 assert!(t.iz[y * w + x].abs() < 1e-3, "{}", t.iz[y * w + x]);

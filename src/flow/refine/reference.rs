@@ -25,7 +25,7 @@ pub fn solve(t: &Terms, u: &mut [f32], v: &mut [f32], h: usize, w: usize, k: &We
         data_system(
             t, &du, &dv, k, &mut a11, &mut a12, &mut a22, &mut b1, &mut b2,
         );
-        smoothness(u, v, &du, &dv, h, w, k.alpha, &mut sh, &mut sv);
+        smoothness(u, v, &du, &dv, h, w, &t.smooth, k.alpha, &mut sh, &mut sv);
         let sys = System {
             a11: &a11,
             a12: &a12,
@@ -91,6 +91,7 @@ fn smoothness(
     dv: &[f32],
     h: usize,
     w: usize,
+    local: &[f32],
     alpha: f32,
     sh: &mut [f32],
     sv: &mut [f32],
@@ -104,7 +105,7 @@ fn smoothness(
             g += (u[j] + du[j] - uu).powi(2) + (v[j] + dv[j] - vv).powi(2);
             let j = if y + 1 < h { i + w } else { i };
             g += (u[j] + du[j] - uu).powi(2) + (v[j] + dv[j] - vv).powi(2);
-            psi[i] = alpha / (g + EPS * EPS).sqrt();
+            psi[i] = alpha * local[i] / (g + EPS * EPS).sqrt();
         }
     }
     for y in 0..h {

@@ -62,7 +62,7 @@ pub fn solve(t: &Terms, u: &mut [f32], v: &mut [f32], h: usize, w: usize, k: &We
     let mut coefs = Coefs::new(h, w);
     for _ in 0..k.fixed_point_iters {
         inc.gather(&mut du, &mut dv);
-        edges.update(u, v, &du, &dv, k.alpha);
+        edges.update(u, v, &du, &dv, &t.smooth, k.alpha);
         coefs.update(t, u, v, &du, &dv, &edges, k);
         for _ in 0..k.sor_iters {
             for colour in 0..2 {
@@ -113,7 +113,8 @@ impl Edges {
     }
 
     /// The weights at the flow `(u + du, v + dv)`.
-    fn update(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], alpha: f32) {
+    #[allow(clippy::too_many_arguments)]
+    fn update(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], local: &[f32], alpha: f32) {
         let (h, w) = (self.h, self.w);
         self.psi
             .par_chunks_mut(w)
@@ -128,7 +129,7 @@ impl Edges {
                     let mut g = (u[j] + du[j] - uu).powi(2) + (v[j] + dv[j] - vv).powi(2);
                     let j = if y + 1 < h { i + w } else { i };
                     g += (u[j] + du[j] - uu).powi(2) + (v[j] + dv[j] - vv).powi(2);
-                    *p = alpha / (g + EPS * EPS).sqrt();
+                    *p = alpha * local[i] / (g + EPS * EPS).sqrt();
                 }
             });
         let psi = &self.psi;
@@ -474,7 +475,7 @@ mod tests {
             sor_iters: 5,
             omega: 1.6,
         };
-        let terms = linearise::terms(&i0, &i1, p.start.u(), p.start.v(), h, w);
+        let terms = linearise::terms(&i0, &i1, p.start.u(), p.start.v(), h, w, 5.0);
         let (mut u, mut v) = (p.start.u().to_vec(), p.start.v().to_vec());
         let (mut ru, mut rv) = (u.clone(), v.clone());
         solve(&terms, &mut u, &mut v, h, w, &k);
