@@ -47,9 +47,6 @@ pub struct RefineConfig {
     pub kappa: f32,
 }
 
-// κ = 5 (DeepFlow's value): the local smoothness weight α(x) lets the flow change across image
-// edges. On generated pairs κ 10 did a little better, but lost one of Note S12's cases (the
-// textureless rocket, filled in from its edges); `docs/flow.md`.
 // The energy's weights and iteration counts are OpenCV's VariationalRefinement settings in its
 // DIS presets (α 20, δ 5, γ 10, 5 fixed-point iterations of 5 SOR sweeps). Its ω = 1.6 suits
 // DIS's start, its patch search, already within a fraction of a pixel; the network's start is
@@ -57,7 +54,9 @@ pub struct RefineConfig {
 // same sweeps at ω 1.6 stop far short of the energy's minimum. At ω 1.9 they reach it at the
 // same cost (`docs/flow.md`, measured on pairs of the training photographs). The scales were
 // chosen on the trend of the real-pair benchmark (1/4 to full resolution; from 1/8 the KITTI
-// pair got worse).
+// pair got worse). κ = 5 (DeepFlow's value) weighs the smoothness term down across image edges,
+// where a moving object's boundary is likely to lie; on generated pairs κ 10 did a little
+// better, but lost one of Note S12's cases (the textureless rocket, filled in from its edges).
 fn default_scales() -> Vec<u32> {
     vec![4, 2, 1]
 }

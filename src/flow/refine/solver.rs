@@ -1,7 +1,7 @@
 //! The variational refinement at one scale: minimise
 //! E(du, dv) = Σ δ·Ψ(n1·(Iz + Ix·du + Iy·dv)²) + γ·Ψ(nx·(Ixz + …)² + ny·(Iyz + …)²)
-//!           + α·Ψ(|∇(u + du)|² + |∇(v + dv)|²),  Ψ(s²) = √(s² + ε²),
-//! by lagged fixed-point iterations on the robust weights, each solving the linear
+//!           + α·e^(−κ|∇I|/255)·Ψ(|∇(u + du)|² + |∇(v + dv)|²),  Ψ(s²) = √(s² + ε²)
+//! (the local weight e^(−κ|∇I|/255) is DeepFlow's, `Terms::smooth`), by lagged fixed-point iterations on the robust weights, each solving the linear
 //! Euler–Lagrange equations by red–black successive over-relaxation (Brox et al. 2004).
 //!
 //! Laid out for speed: each fixed-point iteration computes every pixel's coefficients once (its
@@ -112,8 +112,7 @@ impl Edges {
         }
     }
 
-    /// The weights at the flow `(u + du, v + dv)`.
-    #[allow(clippy::too_many_arguments)]
+    /// The weights at the flow `(u + du, v + dv)`, `local` the terms' per-pixel weight.
     fn update(&mut self, u: &[f32], v: &[f32], du: &[f32], dv: &[f32], local: &[f32], alpha: f32) {
         let (h, w) = (self.h, self.w);
         self.psi
