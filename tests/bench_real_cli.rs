@@ -184,6 +184,16 @@ fn tiny_benchmark_reports_every_set_method_and_pair() {
     }
     let md = fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("set **gone** skipped"), "{md}");
+    // The verdict section is there and says why it has no tables: the tiny run measures 1 and 2
+    // iterations, not 12 against DIS nor 4/12/16.
+    assert_eq!(r["start"], "coarse");
+    assert!(md.contains("from a coarse start) on"), "{md}");
+    assert!(
+        md.contains("## Against DIS medium, and across iterations"),
+        "{md}"
+    );
+    assert!(md.contains("No comparison with OpenCV DIS medium"), "{md}");
+    assert!(md.contains("No iteration ratios"), "{md}");
     for set in &sets {
         for cam in ["clean", "camera"] {
             assert!(md.contains(&format!("### {set}, {cam}: ")), "{set} {cam}");

@@ -1,5 +1,6 @@
 //! `report.md` of the real-data benchmark: the summary (EPE and the 1-px fraction, a row per
-//! set and camera, a column per method), then a table per set and camera, then per pair.
+//! set and camera, a column per method), MMS against DIS medium and across iterations
+//! (`verdict.rs`), then a table per set and camera, then per pair.
 
 use std::fmt::Write;
 
@@ -12,13 +13,18 @@ pub fn markdown(r: &BenchRealReport, command: &str) -> String {
     let _ = writeln!(s, "Made by `{command}`.\n");
     let _ = writeln!(
         s,
-        "MMS: {} ({} parameters, weights {}) on {} thread(s). Peers: {}. Unknown ground truth \
+        "MMS: {} ({} parameters, weights {}{}) on {} thread(s). Peers: {}. Unknown ground truth \
          is left out of every score. A set's scores are means over its known pixels; the \
          \"mean of sets\" rows weigh every set the same, the \"all known pixels\" rows pool the \
          pixels of every set; ms per pair is wall time of the flow call alone.\n",
         r.model,
         r.parameters,
         r.weights,
+        if r.start.is_empty() {
+            String::new()
+        } else {
+            format!(", from a {} start", r.start)
+        },
         r.threads,
         if r.peers.ran {
             format!(
@@ -49,6 +55,7 @@ pub fn markdown(r: &BenchRealReport, command: &str) -> String {
         let _ = writeln!(s, "## {title}\n");
         summary_table(&mut s, r, pick);
     }
+    super::verdict::markdown(&mut s, r);
     let _ = writeln!(s, "## Sets\n");
     for run in &r.runs {
         let _ = writeln!(

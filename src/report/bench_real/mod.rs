@@ -8,6 +8,7 @@ pub mod peers;
 pub mod plot;
 pub mod report;
 pub mod run;
+pub mod verdict;
 
 use std::path::{Path, PathBuf};
 

@@ -93,6 +93,10 @@ pub struct BenchRealReport {
     pub weights: String,
     pub model: String,
     pub parameters: usize,
+    /// Where the network starts: `coarse` (its half-resolution flow) or `zero` (RAFT's and
+    /// Table S4's start); empty in reports written before it was recorded.
+    #[serde(default)]
+    pub start: String,
     /// Threads of the MMS inference (rayon).
     pub threads: usize,
     pub iters: Vec<usize>,

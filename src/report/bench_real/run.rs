@@ -134,6 +134,7 @@ pub fn run(
         weights: plan.weights.clone(),
         model: predictor.config.name.clone(),
         parameters: crate::flow::weights::parameter_count(&predictor.model),
+        start: if opts.coarse_start { "coarse" } else { "zero" }.into(),
         threads: rayon::current_num_threads(),
         iters: plan.iters.clone(),
         cameras,
