@@ -28,8 +28,15 @@ impl Shape {
             Shape::Disc { radius } => x * x + y * y <= radius * radius,
             Shape::Blob { radius, harmonics } => {
                 let r2 = x * x + y * y;
-                if r2 > self.bound_radius().powi(2) {
+                // r(θ) lies within radius·(1 ± Σ|amp_k|): outside the outer circle nothing is
+                // inside, within the inner one everything is, and only the ring between needs θ.
+                let spread: f64 = harmonics.iter().map(|h| h.1.abs()).sum();
+                let (outer, inner) = (radius * (1.0 + spread), radius * (1.0 - spread));
+                if r2 > outer * outer {
                     return false;
+                }
+                if inner > 0.0 && r2 <= inner * inner {
+                    return true;
                 }
                 let theta = y.atan2(x);
                 let r = radius
@@ -91,5 +98,36 @@ mod tests {
         assert!(blob.contains(12.0, 0.0)); // r(0) = 13
         assert!(!blob.contains(-12.0, 0.0)); // r(π) = 7
         assert!((blob.bound_radius() - 13.0).abs() < 1e-12);
+    }
+
+    /// The inner and outer circles decide only what the star-shaped boundary would: on a grid
+    /// of points around blobs of several spreads (one above 1, where no inner circle exists),
+    /// `contains` agrees with r(θ) evaluated everywhere.
+    #[test]
+    fn blob_shortcuts_agree_with_the_boundary() {
+        for harmonics in [
+            vec![(3, 0.3, 0.0)],
+            vec![(2, 0.25, 1.0), (5, 0.1, -0.4)],
+            vec![(1, 0.7, 0.3), (4, 0.6, 2.0)],
+        ] {
+            let radius = 9.0;
+            let blob = Shape::Blob {
+                radius,
+                harmonics: harmonics.clone(),
+            };
+            for i in -90..=90 {
+                for j in -90..=90 {
+                    let (x, y) = (i as f64 * 0.23, j as f64 * 0.19);
+                    let theta = y.atan2(x);
+                    let r = radius
+                        * (1.0
+                            + harmonics
+                                .iter()
+                                .map(|&(k, a, p)| a * (k as f64 * theta + p).cos())
+                                .sum::<f64>());
+                    assert_eq!(blob.contains(x, y), x * x + y * y <= r * r, "({x}, {y})");
+                }
+            }
+        }
     }
 }
