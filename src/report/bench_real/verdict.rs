@@ -67,9 +67,15 @@ impl IterShape {
     }
 }
 
-/// The MMS methods of a run (network alone, refined), each at the iteration count `iters`.
-fn mms_at(run: &SetRun, iters: usize) -> impl Iterator<Item = &MethodScores> {
-    run.methods.iter().filter(move |m| m.iters == Some(iters))
+/// The distinct names among `names`, in their first order.
+fn distinct<'a>(names: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut out: Vec<&str> = Vec::new();
+    for n in names {
+        if !out.contains(&n) {
+            out.push(n);
+        }
+    }
+    out
 }
 
 fn epe_of(run: &SetRun, method: &str, iters: usize) -> Option<f64> {
@@ -86,7 +92,7 @@ pub fn against_peer(r: &BenchRealReport) -> Vec<AgainstPeer> {
         let Some(peer) = run.methods.iter().find(|m| m.method == PEER) else {
             continue;
         };
-        for mms in mms_at(run, ITERS) {
+        for mms in run.methods.iter().filter(|m| m.iters == Some(ITERS)) {
             out.push(AgainstPeer {
                 set: run.set.clone(),
                 camera: run.camera.clone(),
@@ -102,13 +108,8 @@ pub fn against_peer(r: &BenchRealReport) -> Vec<AgainstPeer> {
 pub fn iteration_shape(r: &BenchRealReport) -> Vec<IterShape> {
     let mut out = Vec::new();
     for run in &r.runs {
-        let mut methods: Vec<&str> = Vec::new();
-        for m in run.methods.iter().filter(|m| m.iters.is_some()) {
-            if !methods.contains(&m.method.as_str()) {
-                methods.push(&m.method);
-            }
-        }
-        for method in methods {
+        let mms = run.methods.iter().filter(|m| m.iters.is_some());
+        for method in distinct(mms.map(|m| m.method.as_str())) {
             let ratio = |a: usize, b: usize| match (epe_of(run, method, a), epe_of(run, method, b))
             {
                 (Some(x), Some(y)) if y > 0.0 => Some(x / y),
@@ -134,7 +135,7 @@ fn mark(ok: bool) -> &'static str {
     if ok { "yes" } else { "**no**" }
 }
 
-fn ratio(v: Option<f64>) -> String {
+fn ratio_cell(v: Option<f64>) -> String {
     v.map(|x| format!("{x:.3}")).unwrap_or_else(|| "–".into())
 }
 
@@ -173,14 +174,8 @@ pub fn markdown(s: &mut String, r: &BenchRealReport) {
                 mark(p.px1_wins())
             );
         }
-        let mut methods: Vec<&str> = Vec::new();
-        for p in &peer {
-            if !methods.contains(&p.mms.method.as_str()) {
-                methods.push(&p.mms.method);
-            }
-        }
         s.push('\n');
-        for m in methods {
+        for m in distinct(peer.iter().map(|p| p.mms.method.as_str())) {
             let rows: Vec<&AgainstPeer> = peer.iter().filter(|p| p.mms.method == m).collect();
             let both = rows.iter().filter(|p| p.epe_wins() && p.px1_wins()).count();
             let _ = writeln!(
@@ -231,8 +226,8 @@ pub fn markdown(s: &mut String, r: &BenchRealReport) {
             row.camera,
             row.method,
             row.mean_gt,
-            ratio(row.fall),
-            ratio(row.rise),
+            ratio_cell(row.fall),
+            ratio_cell(row.rise),
             mark(row.holds() == Some(true))
         );
     }
