@@ -17,8 +17,8 @@ use cli::data::{
 };
 use cli::flow::{
     AverageArgs, BenchFlowArgs, BenchLiveArgs, BenchRealArgs, DetectLimitsArgs, EvalArgs,
-    ExportArgs, InferArgs, TrainArgs, average, bench_flow, bench_live, bench_real, detect_limits,
-    eval, export, infer, train,
+    ExportArgs, InferArgs, RefineArgs, TrainArgs, average, bench_flow, bench_live, bench_real,
+    detect_limits, eval, export, infer, refine, train,
 };
 use cli::live::{LiveArgs, live};
 use cli::optics::{CompareArgs, OpticsCommand, compare, optics};
@@ -64,6 +64,9 @@ enum Command {
     Infer(InferArgs),
     /// Evaluate weights on a dataset: EPE, AE, 1/3/5 px and ms per pair for several iteration counts.
     Eval(EvalArgs),
+    /// Refine a given flow (any method's, or ground truth) by the variational refinement that
+    /// follows the network in the flow commands.
+    Refine(RefineArgs),
     /// Time MMS inference or one training step (random weights), or the variational
     /// refinement alone, and print a JSON line.
     BenchFlow(BenchFlowArgs),
@@ -151,6 +154,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Average(a) => average(a),
         Command::Infer(a) => infer(a),
         Command::Eval(a) => eval(a),
+        Command::Refine(a) => refine(a),
         Command::BenchFlow(a) => bench_flow(a),
         Command::BenchReal(a) => bench_real(a),
         Command::BenchLive(a) => bench_live(a),

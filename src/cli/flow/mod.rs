@@ -1,9 +1,10 @@
 //! Commands of the MMS flow network, one file per family: training (train, export, average),
-//! inference (infer, eval) and the benchmarks (bench-flow, bench-real, bench-live,
+//! inference (infer, eval, refine) and the benchmarks (bench-flow, bench-real, bench-live,
 //! detect-limits).
 
 mod bench;
 mod infer;
+mod refine;
 mod train;
 
 pub(crate) use bench::{
@@ -11,4 +12,5 @@ pub(crate) use bench::{
     bench_real, detect_limits,
 };
 pub(crate) use infer::{EvalArgs, InferArgs, eval, infer};
+pub(crate) use refine::{RefineArgs, refine};
 pub(crate) use train::{AverageArgs, ExportArgs, TrainArgs, average, export, train};
