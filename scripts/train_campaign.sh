@@ -5,7 +5,13 @@
 # continued a session at a time, on the CPU in the background or on a GPU machine.
 #
 #   scripts/train_campaign.sh [run] [BUDGET]       continue on this machine's CPU, niced (BUDGET
-#                                                  as pins train --time-budget; default 2h)
+#                                                  as pins train --time-budget; default 2h).
+#                                                  With COOLDOWN_MINUTES=M, the last M minutes
+#                                                  of BUDGET cool a branch of the run down (as
+#                                                  `cooldown`, its length from the session's
+#                                                  median step), so that a session ends with
+#                                                  weights worth scoring; not when the run was
+#                                                  stopped before its budget (SIGTERM)
 #   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) until MINUTES
 #                                                  (at most 9) after the script started, and
 #                                                  copy the checkpoint,
@@ -115,6 +121,75 @@ if os.path.isfile(log):
               f"1 px {float(val[-1]['val_px1']):.3f}")
 PY
 }
+# The run's checkpointed step (0 without one).
+checkpoint_step() {
+    if [ -f "$RUN/checkpoint/state.json" ]; then
+        python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$RUN/checkpoint/state.json"
+    else
+        echo 0
+    fi
+}
+
+# Seconds in a duration written as pins train --time-budget takes it (2h30m, 90m, 45s).
+seconds_of() {
+    python3 - "$1" <<'PY'
+import re, sys
+m = re.fullmatch(r"(?:(\d+)h)?(?:(\d+)m)?(?:(\d+)s)?", sys.argv[1].strip())
+if not m or not any(m.groups()):
+    sys.exit(1)
+print(sum(int(g or 0) * k for g, k in zip(m.groups(), (3600, 60, 1))))
+PY
+}
+
+# COOLDOWN_MINUTES as a whole number (0 when unset).
+cool_minutes() {
+    local c=${COOLDOWN_MINUTES:-0}
+    [[ "$c" =~ ^[0-9]+$ ]] || die "COOLDOWN_MINUTES must be a whole number of minutes, got '$c'"
+    echo $((10#$c))
+}
+
+# cool_down_tail MINUTES SINCE SECONDS [ARGS...]: cools a branch of the run down from where it
+# stands, over as many steps as 80 % of MINUTES hold at the median of this session's steps
+# (those after step SINCE; the rest is for its validations and last step), at most the steps
+# the run has left, within SECONDS; ARGS go to pins train (a device), NICE prefixes it. Sets
+# `cooled` to the branch's folder when it ran.
+cool_down_tail() {
+    local cool=$1 since=$2 left=$3 plan at steps branch done_at
+    shift 3
+    cooled=""
+    local state="$RUN/checkpoint/state.json"
+    [ -f "$state" ] || die "the run wrote no checkpoint to cool down from"
+    plan=$(python3 - "$state" "$RUN/log.csv" "$cool" "$since" <<'PY'
+import json, statistics, sys
+state, log, cool, since = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+s = json.load(open(state))
+rows = [l.split(",") for l in open(log).read().splitlines()[1:]]
+# This session's steps only (a carried log holds other machines' rows before them).
+ms = [float(r[5]) for r in rows if len(r) > 5 and r[5] and int(r[0]) > since][-20:]
+n = int(0.8 * cool * 60e3 / statistics.median(ms)) if ms else 0
+print(s["step"], max(0, min(n, s["config"]["steps"] - s["step"])))
+PY
+    ) || die "cannot plan the cool-down from $state and $RUN/log.csv"
+    read -r at steps <<<"$plan"
+    if [ "$left" -lt 30 ]; then
+        echo "no cool-down: only ${left} s are left"
+    elif [ "$steps" -ge 1 ]; then
+        branch="$WORK/cooldown-$at"
+        echo "cooling down: --branch-from $RUN → $branch over $steps steps ${*}"
+        ${NICE:-} "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
+            --branch-from "$RUN" --cooldown "$steps" "$@" --time-budget "${left}s"
+        cooled=$branch
+        done_at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$branch/checkpoint/state.json")
+        if [ "$done_at" -eq $((at + steps)) ]; then
+            echo "cool-down complete: steps $at to $done_at, weights $branch/last.safetensors"
+        else
+            echo "cool-down stopped at step $done_at of $at to $((at + steps)): its weights are not cooled"
+        fi
+    else
+        echo "no cool-down: the run has no steps left, or the session measured none"
+    fi
+}
+
 if [ "$mode" = status ]; then
     status
     exit 0
@@ -218,9 +293,29 @@ echo "starting: ${start[*]}"
 # every 100 steps and every ten minutes) for `average`.
 if [ "$mode" = run ]; then
     budget=${1:-2h}
+    cool=$(cool_minutes)
+    run_budget=$budget
+    if [ "$cool" -gt 0 ]; then
+        total=$(seconds_of "$budget") || die "BUDGET must be hours, minutes and seconds such as 2h30m, 90m or 45s, got '$budget'"
+        [ "$total" -gt $((cool * 60 + 60)) ] ||
+            die "COOLDOWN_MINUTES ($cool) leaves no time of the budget $budget for the run"
+        # Less the cool-down's minutes and 30 s for the run's last step and the status.
+        run_budget="$((total - cool * 60 - 30 - ($(date +%s) - t_script)))s"
+    fi
+    from_step=$(checkpoint_step)
+    log_file=$(mktemp)
     nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$RUN" \
-        "${start[@]}" --time-budget "$budget" --snapshots "$WORK/snapshots"
+        "${start[@]}" --time-budget "$run_budget" --snapshots "$WORK/snapshots" | tee "$log_file"
     status
+    if [ "$cool" -gt 0 ]; then
+        if grep -q "stopped by its time budget" "$log_file"; then
+            left=$(($(seconds_of "$budget") - ($(date +%s) - t_script) - 20))
+            NICE="nice -n 19" cool_down_tail "$cool" "$from_step" "$left"
+        else
+            echo "no cool-down: the run did not end at its time budget"
+        fi
+    fi
+    rm -f "$log_file"
     exit 0
 fi
 
@@ -242,10 +337,7 @@ echo "training for at most ${left} s on ${DEVICE:-wgpu}"
 mkdir -p "$WORK/snapshots"
 before=" $(cd "$WORK/snapshots" && echo *.safetensors) "
 # The step this session starts at (its own rows of the log come after it).
-from_step=0
-if [ -f "$RUN/checkpoint/state.json" ]; then
-    from_step=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$RUN/checkpoint/state.json")
-fi
+from_step=$(checkpoint_step)
 "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$RUN" --device "${DEVICE:-wgpu}" \
     "${start[@]}" --time-budget "${left}s" --snapshots "$WORK/snapshots"
 echo "trained for $(($(date +%s) - t0)) s on ${DEVICE:-wgpu}"
@@ -265,40 +357,12 @@ done
 if [ "${#session[@]}" -ge 2 ]; then
     "$PINS" average "${session[@]}" --out "$outdir/average.safetensors"
 fi
-# The cool-down: as many steps as 80 % of its minutes hold at the session's median step (the
-# rest for its validations and the last step), at most the steps the run has left.
 if [ "$cool" -gt 0 ]; then
-    plan=$(python3 - "$state" "$RUN/log.csv" "$cool" "$from_step" <<'PY'
-import json, statistics, sys
-state, log, cool, since = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
-s = json.load(open(state))
-rows = [l.split(",") for l in open(log).read().splitlines()[1:]]
-# This session's steps only (a carried log holds other machines' rows before them).
-ms = [float(r[5]) for r in rows if len(r) > 5 and r[5] and int(r[0]) > since][-20:]
-n = int(0.8 * cool * 60e3 / statistics.median(ms)) if ms else 0
-print(s["step"], max(0, min(n, s["config"]["steps"] - s["step"])))
-PY
-    ) || die "cannot plan the cool-down from $state and $RUN/log.csv"
-    read -r at steps <<<"$plan"
-    budget=$((minutes * 60 - ($(date +%s) - t_script) - 20))
-    if [ "$budget" -lt 30 ]; then
-        echo "no cool-down: only ${budget} s are left of ${minutes} min"
-    elif [ "$steps" -ge 1 ]; then
-        branch="$WORK/cooldown-$at"
-        echo "cooling down on ${DEVICE:-wgpu}: --branch-from $RUN → $branch over $steps steps"
-        "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
-            --branch-from "$RUN" --cooldown "$steps" --device "${DEVICE:-wgpu}" \
-            --time-budget "${budget}s"
-        cp "$branch/last.safetensors" "$outdir/cooldown.safetensors"
-        cp "$branch/log.csv" "$outdir/cooldown_log.csv"
-        done_at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$branch/checkpoint/state.json")
-        if [ "$done_at" -eq $((at + steps)) ]; then
-            echo "cool-down complete: steps $at to $done_at"
-        else
-            echo "cool-down stopped at step $done_at of $at to $((at + steps)): its weights are not cooled"
-        fi
-    else
-        echo "no cool-down: the run has no steps left, or the session measured none"
+    cool_down_tail "$cool" "$from_step" $((minutes * 60 - ($(date +%s) - t_script) - 20)) \
+        --device "${DEVICE:-wgpu}"
+    if [ -n "${cooled:-}" ]; then
+        cp "$cooled/last.safetensors" "$outdir/cooldown.safetensors"
+        cp "$cooled/log.csv" "$outdir/cooldown_log.csv"
     fi
 fi
 ls -l "$outdir"

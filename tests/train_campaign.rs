@@ -537,14 +537,9 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
 /// The GPU mode (here on the CPU) with COOLDOWN_MINUTES: the run trains, then a branch of it
 /// cools down over as many steps as the session's median step allows, complete within the
 /// minutes; its weights and log come back beside the run's checkpoint.
-#[test]
-fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (c, work, out) = (
-        tmp.path().join("campaign"),
-        tmp.path().join("work"),
-        tmp.path().join("gpu_out"),
-    );
+/// A campaign folder of a tiny run (64×64 crops, 2 iterations) on one generated source, long
+/// enough never to finish within a test.
+fn tiny_campaign(c: &Path) {
     fs::create_dir_all(c.join("data")).unwrap();
     fs::write(
         c.join("train.json"),
@@ -563,6 +558,17 @@ fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
         r#"{"sources": [{"generator": "data/a.json", "weight": 1}]}"#,
     )
     .unwrap();
+}
+
+#[test]
+fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (c, work, out) = (
+        tmp.path().join("campaign"),
+        tmp.path().join("work"),
+        tmp.path().join("gpu_out"),
+    );
+    tiny_campaign(&c);
     let env = [("CAMPAIGN", c.as_path()), ("WORK", work.as_path())];
     let (ok_, text) = campaign(
         &["gpu", "2", s(&out)],
@@ -596,4 +602,60 @@ fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
         fs::read(out.join("cooldown.safetensors")).unwrap(),
         fs::read(branch.join("last.safetensors")).unwrap()
     );
+}
+
+#[test]
+fn the_campaign_script_ends_a_cpu_session_with_a_cool_down() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (c, work) = (tmp.path().join("campaign"), tmp.path().join("work"));
+    tiny_campaign(&c);
+    let env = [("CAMPAIGN", c.as_path()), ("WORK", work.as_path())];
+    let (ok_, text) = campaign(&["run", "100s"], &env, &[("COOLDOWN_MINUTES", "2")]);
+    assert!(!ok_ && text.contains("leaves no time"), "{text}");
+    assert!(!work.join("run").exists(), "nothing ran: {text}");
+    // About 40 s of run, then a minute's cool-down of a branch, planned from the run's median
+    // step (whether it ends within its minute depends on the machine's load, so only that it
+    // ran and took the rate down is asserted).
+    let (ok_, text) = campaign(&["run", "130s"], &env, &[("COOLDOWN_MINUTES", "1")]);
+    assert!(ok_ && text.contains("cooling down: --branch-from"), "{text}");
+    let at = state_step(&work.join("run"));
+    let branch = work.join(format!("cooldown-{at}"));
+    assert!(state_step(&branch) > at, "{text}");
+    let lr = log_column(&branch, 1);
+    let (first, last) = (lr[at as usize], lr[lr.len() - 1]);
+    assert!(last < 0.9 * first, "{first} → {last}");
+    // A run stopped before its budget (SIGTERM, as a session ends it) is not cooled down.
+    use std::time::{Duration, Instant};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let child = std::process::Command::new("bash")
+        .arg(root.join("scripts/train_campaign.sh"))
+        .args(["run", "10m"])
+        .env("PINS", env!("CARGO_BIN_EXE_pins"))
+        .envs(env)
+        .env("COOLDOWN_MINUTES", "1")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (rows, t0) = (rows_or_empty(&work.join("run")).len(), Instant::now());
+    while rows_or_empty(&work.join("run")).len() <= rows {
+        assert!(t0.elapsed() < Duration::from_secs(600), "no step logged");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let pattern = format!("out {}", work.join("run").display());
+    assert!(
+        std::process::Command::new("pkill")
+            .args(["-TERM", "-f", &pattern])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("no cool-down: the run did not end at its time budget"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(!text.contains("cooling down"), "{text}");
 }
