@@ -76,7 +76,10 @@ fn a_flow_off_by_a_fraction_of_a_pixel_is_brought_back_towards_the_truth() {
         assert!(stdout.contains("mean change"), "{stdout}");
         let refined = read_flow(&out).unwrap();
         let (before, after) = (epe(&start, &truth), epe(&refined, &truth));
-        assert!((before - 0.5).abs() < 1e-4, "the start is 0.5 px off: {before}");
+        assert!(
+            (before - 0.5).abs() < 1e-4,
+            "the start is 0.5 px off: {before}"
+        );
         // Measured: 0.05–0.07 px on these three pairs.
         assert!(
             after < 0.3 * before,
@@ -124,7 +127,11 @@ fn bad_input_fails_clearly_without_output() {
         (&holes, "variational", "unknown vectors"),
         (&good, "none", "nothing to do"),
         (&good, "tv-l1", "expected none, variational"),
-        (&tmp.path().join("missing.flo"), "variational", "missing.flo"),
+        (
+            &tmp.path().join("missing.flo"),
+            "variational",
+            "missing.flo",
+        ),
     ] {
         let err = run(flow, refine);
         assert!(err.contains(says), "{flow:?} {refine}: {err}");

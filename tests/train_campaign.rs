@@ -617,7 +617,10 @@ fn the_campaign_script_ends_a_cpu_session_with_a_cool_down() {
     // step (whether it ends within its minute depends on the machine's load, so only that it
     // ran and took the rate down is asserted).
     let (ok_, text) = campaign(&["run", "130s"], &env, &[("COOLDOWN_MINUTES", "1")]);
-    assert!(ok_ && text.contains("cooling down: --branch-from"), "{text}");
+    assert!(
+        ok_ && text.contains("cooling down: --branch-from"),
+        "{text}"
+    );
     let at = state_step(&work.join("run"));
     let branch = work.join(format!("cooldown-{at}"));
     assert!(state_step(&branch) > at, "{text}");
@@ -653,7 +656,8 @@ fn the_campaign_script_ends_a_cpu_session_with_a_cool_down() {
     let out = child.wait_with_output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        out.status.success() && text.contains("no cool-down: the run did not end at its time budget"),
+        out.status.success()
+            && text.contains("no cool-down: the run did not end at its time budget"),
         "{text}{}",
         String::from_utf8_lossy(&out.stderr)
     );

@@ -62,7 +62,11 @@ pub(crate) fn refine(a: RefineArgs) -> Result<()> {
     let ms = t.elapsed().as_secs_f64() * 1e3;
     io::write_flow(&a.out, &out)?;
     if let Some(v) = &a.viz {
-        io::write_image(v, &pins::flow::viz::flow_to_image(&out, None), BitDepth::Eight)?;
+        io::write_image(
+            v,
+            &pins::flow::viz::flow_to_image(&out, None),
+            BitDepth::Eight,
+        )?;
     }
     println!(
         "{} → {}: {}x{}, mean change {:.3} px, max |flow| {:.2} px, {ms:.0} ms",
