@@ -375,7 +375,12 @@ fn a_cool_down_branches_off_the_run_and_takes_the_rate_to_zero() {
 
 /// Runs `scripts/train_campaign.sh ARGS` with the test's binary and `env`; (success, stdout +
 /// stderr).
-fn campaign(args: &[&str], env: &[(&str, &Path)], extra: &[(&str, &str)]) -> (bool, String) {
+/// `scripts/train_campaign.sh ARGS` with this build's pins and the environment `env`, `extra`.
+fn campaign_command(
+    args: &[&str],
+    env: &[(&str, &Path)],
+    extra: &[(&str, &str)],
+) -> std::process::Command {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut cmd = std::process::Command::new("bash");
     cmd.arg(root.join("scripts/train_campaign.sh"))
@@ -387,7 +392,11 @@ fn campaign(args: &[&str], env: &[(&str, &Path)], extra: &[(&str, &str)]) -> (bo
     for (k, v) in extra {
         cmd.env(k, v);
     }
-    let out = cmd.output().unwrap();
+    cmd
+}
+
+fn campaign(args: &[&str], env: &[(&str, &Path)], extra: &[(&str, &str)]) -> (bool, String) {
+    let out = campaign_command(args, env, extra).output().unwrap();
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
@@ -629,13 +638,7 @@ fn the_campaign_script_ends_a_cpu_session_with_a_cool_down() {
     assert!(last < 0.9 * first, "{first} → {last}");
     // A run stopped before its budget (SIGTERM, as a session ends it) is not cooled down.
     use std::time::{Duration, Instant};
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let child = std::process::Command::new("bash")
-        .arg(root.join("scripts/train_campaign.sh"))
-        .args(["run", "10m"])
-        .env("PINS", env!("CARGO_BIN_EXE_pins"))
-        .envs(env)
-        .env("COOLDOWN_MINUTES", "1")
+    let child = campaign_command(&["run", "10m"], &env, &[("COOLDOWN_MINUTES", "1")])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
