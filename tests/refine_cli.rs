@@ -137,4 +137,20 @@ fn bad_input_fails_clearly_without_output() {
         assert!(err.contains(says), "{flow:?} {refine}: {err}");
         assert!(!out.exists(), "{flow:?} {refine}: no output on failure");
     }
+    // A picture that cannot be written takes the flow with it.
+    let err = failed(&pins(&[
+        "refine",
+        "--img1",
+        img1.to_str().unwrap(),
+        "--img2",
+        img2.to_str().unwrap(),
+        "--flow",
+        good.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--viz",
+        tmp.path().join("flow.xyz").to_str().unwrap(),
+    ]));
+    assert!(err.contains("xyz"), "{err}");
+    assert!(!out.exists(), "no flow without its picture");
 }

@@ -62,30 +62,24 @@ pub(crate) fn refine(a: RefineArgs) -> Result<()> {
     let ms = t.elapsed().as_secs_f64() * 1e3;
     io::write_flow(&a.out, &out)?;
     if let Some(v) = &a.viz {
-        io::write_image(
-            v,
-            &pins::flow::viz::flow_to_image(&out, None),
-            BitDepth::Eight,
-        )?;
+        let viz = pins::flow::viz::flow_to_image(&out, None);
+        if let Err(e) = io::write_image(v, &viz, BitDepth::Eight) {
+            // No partial output: the flow goes too when its picture cannot be written.
+            let _ = std::fs::remove_file(&a.out);
+            return Err(e.into());
+        }
     }
+    // The mean change is the refined flow's end-point error against the flow it started from.
+    let mut change = pins::flow::metrics::FlowErrorSums::default();
+    change.add(&out, &flow, None)?;
     println!(
         "{} → {}: {}x{}, mean change {:.3} px, max |flow| {:.2} px, {ms:.0} ms",
         a.flow.display(),
         a.out.display(),
         out.width(),
         out.height(),
-        mean_change(&flow, &out),
+        change.scores().epe,
         out.max_magnitude(),
     );
     Ok(())
-}
-
-/// Mean length of the change from `a` to `b` (same size, finite).
-fn mean_change(a: &pins::types::Flow, b: &pins::types::Flow) -> f64 {
-    let n = a.u().len().max(1) as f64;
-    let sum: f64 = (a.u().iter().zip(a.v()))
-        .zip(b.u().iter().zip(b.v()))
-        .map(|((au, av), (bu, bv))| ((bu - au) as f64).hypot((bv - av) as f64))
-        .sum();
-    sum / n
 }
