@@ -8,8 +8,10 @@
 #   scripts/track_system_sweep.sh PINS OUT SEED...
 #
 # PINS: a pins binary (built with `--features wgpu` for DEVICE=wgpu); DEVICE: cpu (default) or
-# a GPU backend of that build; OUT: a folder for summary.txt (`pins track eval`'s table per
-# clip) and evals.jsonl (one line per clip: {"name", "eval": the eval JSON}), which
+# a GPU backend of that build; WEIGHTS: the tracker's MMS weights (default: its own, mms-small);
+# KINDS: the clip kinds to run (default: "sinusoid spiral random five"; each keeps its seed
+# offset, so `KINDS=sinusoid` runs the sinusoids of the full sweep); OUT: a folder for
+# summary.txt (`pins track eval`'s table per clip) and evals.jsonl (one line per clip: {"name", "eval": the eval JSON}), which
 # scripts/track_system_summary.py reads. WORK (default: a temporary folder) holds the clips.
 set -uo pipefail
 B=$(realpath "${1:?usage: track_system_sweep.sh PINS OUT SEED...}")
@@ -20,6 +22,14 @@ for s in "$@"; do
     [[ $s =~ ^[0-9]+$ ]] || { echo "seed must be a non-negative integer, got '$s'" >&2; exit 2; }
 done
 DEVICE=${DEVICE:-cpu}
+WEIGHTS=${WEIGHTS:-}
+KINDS=${KINDS:-sinusoid spiral random five}
+for kind in $KINDS; do
+    case $kind in
+        sinusoid | spiral | random | five) ;;
+        *) echo "KINDS: unknown clip kind '$kind' (sinusoid, spiral, random, five)" >&2; exit 2 ;;
+    esac
+done
 JOBS=${JOBS:-4}
 FRAMES=${FRAMES:-150}
 W=${WORK:-$(mktemp -d)}
@@ -44,8 +54,10 @@ for s in "$@"; do
     k=0
     for kind in sinusoid spiral random five; do
         n=${kind}_$((s + k))
-        scene $kind $((s + k)) > "$n.json"
-        echo "$n" >> list.txt
+        if [[ " $KINDS " == *" $kind "* ]]; then
+            scene $kind $((s + k)) > "$n.json"
+            echo "$n" >> list.txt
+        fi
         k=$((k + 1))
     done
 done
@@ -57,7 +69,7 @@ track() {
     local n=$1
     while [ ! -e "$n.rendered" ] && [ ! -e "$n.failed" ]; do sleep 1; done
     if [ -e "$n.failed" ] ||
-        ! "$B" track --frames "$n/frames" --out "${n}_t" --iters 4 --no-plots --device "$DEVICE" > "$n.track.log" 2>&1 ||
+        ! "$B" track --frames "$n/frames" --out "${n}_t" --iters 4 --no-plots --device "$DEVICE" ${WEIGHTS:+--weights "$WEIGHTS"} > "$n.track.log" 2>&1 ||
         ! "$B" track eval --tracks "${n}_t/tracks.json" --truth "$n/truth.json" --out "$n.eval.json" > "$n.eval.txt" 2>&1; then
         (flock 9; echo "## $n FAILED: $(tail -n 2 "$n".*.log | tr '\n' ' ')" >> "$O/summary.txt") 9> lock
         rm -rf "$n"
@@ -72,7 +84,7 @@ track() {
     rm -rf "$n"
 }
 export -f track
-export B O t0 DEVICE
+export B O t0 DEVICE WEIGHTS
 xargs -P "$JOBS" -I{} bash -c 'track {}' < list.txt
 wait
 echo "# done [$(($(date +%s) - t0)) s]" >> "$O/summary.txt"

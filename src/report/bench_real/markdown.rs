@@ -39,6 +39,9 @@ pub fn markdown(r: &BenchRealReport, command: &str) -> String {
             )
         }
     );
+    if let Some(w) = &r.peers.version_warning {
+        let _ = writeln!(s, "**Warning:** {w}.\n");
+    }
     for k in &r.skipped {
         let _ = writeln!(s, "- set **{}** skipped: {}", k.set, k.reason);
     }

@@ -12,6 +12,35 @@ use crate::error::{Error, Result};
 /// The script, as shipped with this build (piped to `python3 -`, so no path is needed).
 pub const SCRIPT: &str = include_str!("../../../scripts/flow_baselines.py");
 
+/// `python/requirements-peers.txt`: the OpenCV the reports of `experiments/results/` were
+/// measured with.
+pub const REQUIREMENTS: &str = include_str!("../../../python/requirements-peers.txt");
+
+/// Where [`REQUIREMENTS`] lies in the repository, for messages.
+pub const REQUIREMENTS_PATH: &str = "python/requirements-peers.txt";
+
+/// The OpenCV version [`REQUIREMENTS`] pins, as `cv2.__version__` reports it: the wheel's
+/// version without its build number (`opencv-python-headless==5.0.0.93` → `5.0.0`).
+pub fn pinned_opencv() -> Option<String> {
+    REQUIREMENTS.lines().find_map(|l| {
+        let v = l.trim().strip_prefix("opencv-python-headless==")?;
+        Some(v.split('.').take(3).collect::<Vec<_>>().join("."))
+    })
+}
+
+/// A warning when `found` (`cv2.__version__`) is not the pinned version: DIS's numbers move with
+/// OpenCV's version, so peers compare across reports only at one version.
+pub fn version_warning(found: &str) -> Option<String> {
+    let pinned = pinned_opencv()?;
+    (found.trim() != pinned).then(|| {
+        format!(
+            "the peers ran on OpenCV {found}, not the {pinned} of {REQUIREMENTS_PATH}; DIS's \
+             numbers move with OpenCV's version, so compare them only with reports made on \
+             OpenCV {found}"
+        )
+    })
+}
+
 /// One pair of one method.
 #[derive(Clone, Debug, Deserialize)]
 pub struct PeerPair {
@@ -63,7 +92,7 @@ pub fn available(python: &str) -> std::result::Result<String, String> {
         let last = err.lines().last().unwrap_or("").trim();
         Err(format!(
             "`{python} -c \"import numpy, cv2\"` failed ({last}); \
-             install them with `pip install opencv-python-headless numpy`"
+             install them with `{python} -m pip install -r {REQUIREMENTS_PATH}`"
         ))
     }
 }
@@ -114,6 +143,25 @@ pub fn read(json: &Path) -> Result<PeersFile> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_pinned_opencv_is_read_without_its_build_number() {
+        let pinned = pinned_opencv().expect("requirements-peers.txt pins opencv-python-headless");
+        assert_eq!(pinned.split('.').count(), 3, "{pinned}");
+        assert!(REQUIREMENTS.contains(&format!("opencv-python-headless=={pinned}.")));
+        assert_eq!(version_warning(&pinned), None);
+        assert_eq!(version_warning(&format!("{pinned}\n")), None);
+    }
+
+    #[test]
+    fn another_opencv_is_warned_about_by_both_versions() {
+        let pinned = pinned_opencv().expect("pinned");
+        let w = version_warning("4.14.0").expect("4.14.0 is not the pinned version");
+        assert!(
+            w.contains("4.14.0") && w.contains(&pinned) && w.contains(REQUIREMENTS_PATH),
+            "{w}"
+        );
+    }
 
     #[test]
     fn the_script_is_compiled_in_and_a_missing_python_is_explained() {

@@ -71,6 +71,9 @@ pub struct PeersInfo {
     /// Why they did not run.
     pub skipped_because: Option<String>,
     pub opencv: Option<String>,
+    /// Set when `opencv` is not the version of `python/requirements-peers.txt`.
+    #[serde(default)]
+    pub version_warning: Option<String>,
     pub threads: usize,
 }
 

@@ -87,18 +87,26 @@ pub fn run(
     }
     let peers_info = if opts.peers {
         match peers::available(&opts.python) {
-            Ok(version) => PeersInfo {
-                ran: true,
-                skipped_because: None,
-                opencv: Some(version),
-                threads: plan.peer_threads,
-            },
+            Ok(version) => {
+                let version_warning = peers::version_warning(&version);
+                if let Some(w) = &version_warning {
+                    log(&format!("warning: {w}"));
+                }
+                PeersInfo {
+                    ran: true,
+                    skipped_because: None,
+                    opencv: Some(version),
+                    version_warning,
+                    threads: plan.peer_threads,
+                }
+            }
             Err(why) => {
                 log(&format!("OpenCV peers skipped: {why}"));
                 PeersInfo {
                     ran: false,
                     skipped_because: Some(why),
                     opencv: None,
+                    version_warning: None,
                     threads: plan.peer_threads,
                 }
             }
@@ -109,6 +117,7 @@ pub fn run(
             ran: false,
             skipped_because: Some("--no-peers".into()),
             opencv: None,
+            version_warning: None,
             threads: plan.peer_threads,
         }
     };

@@ -279,12 +279,32 @@ mod tests {
                 ran: true,
                 skipped_because: None,
                 opencv: None,
+                version_warning: None,
                 threads: 1,
             },
             skipped: Vec::new(),
             runs,
             summary: Vec::new(),
         }
+    }
+
+    /// A run on another OpenCV than the pinned one says so at the top of its report; one on the
+    /// pinned version does not.
+    #[test]
+    fn the_report_warns_of_another_opencv() {
+        let mut r = report(vec![run("kitti", 50.0, vec![m(PEER, None, 24.3, 0.32)])]);
+        let pinned = super::super::peers::pinned_opencv().expect("pinned");
+        r.peers.opencv = Some(pinned.clone());
+        r.peers.version_warning = super::super::peers::version_warning(&pinned);
+        let md = super::super::markdown::markdown(&r, "pins bench-real");
+        assert!(!md.contains("**Warning:**"), "{md}");
+        r.peers.opencv = Some("4.14.0".into());
+        r.peers.version_warning = super::super::peers::version_warning("4.14.0");
+        let md = super::super::markdown::markdown(&r, "pins bench-real");
+        assert!(
+            md.contains("**Warning:** the peers ran on OpenCV 4.14.0"),
+            "{md}"
+        );
     }
 
     /// The wins are read per set from the right rows: the MMS row at 12 iterations, DIS medium
