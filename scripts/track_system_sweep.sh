@@ -11,8 +11,9 @@
 # a GPU backend of that build; WEIGHTS: the tracker's MMS weights (default: its own, mms-small);
 # KINDS: the clip kinds to run (default: "sinusoid spiral random five"; each keeps its seed
 # offset, so `KINDS=sinusoid` runs the sinusoids of the full sweep); OUT: a folder for
-# summary.txt (`pins track eval`'s table per clip) and evals.jsonl (one line per clip: {"name", "eval": the eval JSON}), which
-# scripts/track_system_summary.py reads. WORK (default: a temporary folder) holds the clips.
+# summary.txt (`pins track eval`'s table per clip) and evals.jsonl (one line per clip:
+# {"name", "eval": the eval JSON}), which scripts/track_system_summary.py reads. WORK (default: a
+# temporary folder) holds the clips.
 set -uo pipefail
 B=$(realpath "${1:?usage: track_system_sweep.sh PINS OUT SEED...}")
 O=$(realpath -m "${2:?usage: track_system_sweep.sh PINS OUT SEED...}")
