@@ -27,7 +27,8 @@ speed over the valid pixels, given per pair as mean_gt).
 
 Usage:
   python3 scripts/flow_baselines.py --data out/eval_data [--out peers.json] [--threads 1]
-Needs: pip install opencv-python-headless numpy
+      [--flows DIR]   # also each method's flow: DIR/dis_medium/NNNNN.flo, ... (Middlebury .flo)
+Needs: python3 -m pip install -r python/requirements-peers.txt (the OpenCV of the reports)
 
 Output JSON (`pins eval --peers` reads methods[].name, .epe and .ms_per_pair; `pins bench-real`
 reads the rest):
@@ -187,7 +188,23 @@ METHODS = [
 ]
 
 
-def run_method(name, make, data):
+def slug(name):
+    """A method's folder under --flows: "OpenCV DIS medium" -> "dis_medium"."""
+    return re.sub(r"[^a-z0-9]+", "_", name.lower().removeprefix("opencv ")).strip("_")
+
+
+def write_flo(path, flow):
+    """Writes (H, W, 2) flow as a Middlebury .flo file, all or nothing."""
+    h, w = flow.shape[:2]
+    tmp = f"{path}.tmp{os.getpid()}"
+    with open(tmp, "wb") as f:
+        f.write(np.array([FLO_MAGIC], "<f4").tobytes())
+        f.write(np.array([w, h], "<i4").tobytes())
+        f.write(np.ascontiguousarray(flow, "<f4").tobytes())
+    os.replace(tmp, path)
+
+
+def run_method(name, make, data, flows=None):
     fn = make()
     fn(data[0][1], data[0][2])  # untimed warm-up
     sums, seconds, per_pair = Sums(), 0.0, []
@@ -198,6 +215,13 @@ def run_method(name, make, data):
         seconds += dt
         if pred is None:
             raise DataError(f"{name}: no flow returned for pair {pair}")
+        if flows:
+            d = os.path.join(flows, slug(name))
+            try:
+                os.makedirs(d, exist_ok=True)
+                write_flo(os.path.join(d, f"{pair}.flo"), np.asarray(pred, dtype=np.float32))
+            except OSError as e:
+                raise DataError(f"--flows {flows}: cannot write {name}'s flow of pair {pair}: {e}")
         one = Sums()
         one.add(np.asarray(pred, dtype=np.float32), gt, f"{name}, pair {pair}")
         sums.merge(one)
@@ -233,6 +257,7 @@ def main():
     ap.add_argument("--data", required=True, help="folder written by `pins generate`")
     ap.add_argument("--out", help="write the JSON here (default: print only the table)")
     ap.add_argument("--threads", type=int, default=1, help="cv2.setNumThreads (default 1)")
+    ap.add_argument("--flows", help="also write each method's flow here: DIR/METHOD/NNNNN.flo")
     args = ap.parse_args()
     if args.threads < 0:
         ap.error("--threads must be >= 0")
@@ -242,7 +267,7 @@ def main():
         h, w = data[0][1].shape
         print(f"{len(data)} pairs ({w}x{h}) from {args.data}; OpenCV {cv2.__version__}, "
               f"{cv2.getNumThreads()} thread(s)", file=sys.stderr)
-        rows = [run_method(name, make, data) for name, make in METHODS]
+        rows = [run_method(name, make, data, args.flows) for name, make in METHODS]
         zero = zero_flow(data)
     except DataError as e:
         sys.exit(f"error: {e}")

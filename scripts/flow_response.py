@@ -6,6 +6,8 @@ on scenes of sub-pixel and pixel motion (Middlebury): this separates the two. Fo
 true motion length it prints the pixels, the EPE and the median of the estimate's component
 along the true motion over the true length (1: the whole motion, 0: none); then the
 least-squares slope of each estimated component on the true one (1 for an unbiased estimate).
+Each band also has the share of its pixels within 1 px and its median end-point error: where a
+method loses the 1-px share (gross errors at one motion size, or a spread at all of them).
 
     scripts/flow_response.py EST.flo:TRUTH.flo [EST2.flo:TRUTH2.flo ...]   # pooled over pairs
     scripts/flow_response.py --data DIR [--every N]   # a dataset's true motions: still share, bands
@@ -20,7 +22,8 @@ import sys
 
 import numpy as np
 
-BANDS = [(0.05, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, 8.0), (8.0, 32.0), (32.0, np.inf)]
+BANDS = [(0.05, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 4.0), (4.0, 8.0), (8.0, 16.0), (16.0, 32.0),
+         (32.0, 64.0), (64.0, np.inf)]
 
 
 def read_flo(path):
@@ -50,21 +53,22 @@ def response(pairs):
         e, t = read_flo(e_path), read_flo(t_path)
         if e.shape != t.shape:
             sys.exit(f"flow_response: {e_path} is {e.shape[1]}x{e.shape[0]}, {t_path} {t.shape[1]}x{t.shape[0]}")
-        known = (np.abs(t) < 1e9).all(-1)
+        known = (np.isfinite(t) & (np.abs(t) < 1e9)).all(-1)
         est.append(e[known])
         truth.append(t[known])
     e, t = np.concatenate(est).astype(np.float64), np.concatenate(truth).astype(np.float64)
     length = np.linalg.norm(t, axis=1)
     print(f"{len(pairs)} pair(s), {len(t)} known pixels, EPE {np.linalg.norm(e - t, axis=1).mean():.3f}")
-    print("| true motion | pixels | EPE | along the truth / true length (median) |")
-    print("|---|---|---|---|")
+    print("| true motion | pixels | EPE | within 1 px | median error | along the truth / true length (median) |")
+    print("|---|---|---|---|---|---|")
     for lo, hi in BANDS:
         sel = (length >= lo) & (length < hi)
         if sel.sum() == 0:
             continue
         along = (e[sel] * t[sel]).sum(1) / length[sel] ** 2
-        epe = np.linalg.norm(e[sel] - t[sel], axis=1).mean()
-        print(f"| {band_name(lo, hi)} | {sel.sum()} | {epe:.3f} | {np.median(along):.2f} |")
+        err = np.linalg.norm(e[sel] - t[sel], axis=1)
+        print(f"| {band_name(lo, hi)} | {sel.sum()} | {err.mean():.3f} | {(err < 1.0).mean():.3f} | "
+              f"{np.median(err):.2f} | {np.median(along):.2f} |")
     for c, name in ((0, "u"), (1, "v")):
         if np.ptp(t[:, c]) == 0:
             # One true value (a pure translation): no slope to fit.

@@ -37,6 +37,8 @@ pub mod purpose {
     pub const TRAIN: u64 = 6;
     /// Optional scene knobs, drawn apart from the geometry so old configs keep their scenes.
     pub const VARIETY: u64 = 7;
+    /// A chairs scene's ground plane (`scene::ground`), apart from every other draw.
+    pub const GROUND: u64 = 8;
 }
 
 #[cfg(test)]

@@ -58,12 +58,23 @@ fn reports_the_share_of_each_motion_the_estimate_gives() {
     let text = run(&half);
     let bands: Vec<&str> = text
         .lines()
-        .filter(|l| l.starts_with("| ") && l.contains(" px |"))
+        .filter(|l| l.starts_with("| ") && l.contains(" px |") && !l.contains("true motion"))
         .collect();
     assert!(bands.len() >= 4, "{text}");
     for line in &bands {
         assert!(line.trim_end().ends_with("| 0.50 |"), "{line}\n{text}");
     }
+    // Half of a motion is within 1 px of it below 2 px and never from 2 px on; the median
+    // error is half the band's motion.
+    let cells = |band: &str| -> Vec<String> {
+        let line = bands.iter().find(|l| l.starts_with(&format!("| {band} |")));
+        let line = line.unwrap_or_else(|| panic!("no band {band}\n{text}"));
+        line.split('|').map(|c| c.trim().to_string()).collect()
+    };
+    assert_eq!(cells("1–2 px")[4], "1.000", "{text}");
+    assert_eq!(cells("4–8 px")[4], "0.000", "{text}");
+    let median: f64 = cells("4–8 px")[5].parse().unwrap();
+    assert!((2.0..4.0).contains(&median), "{text}");
     assert!(
         text.contains("u: slope 0.50") && text.contains("v: slope 0.50"),
         "{text}"

@@ -1,7 +1,8 @@
 //! FlyingChairs-like procedural scenes: a textured background under a small global affine
 //! motion and textured blob sprites under independent translations, rotations and scalings,
 //! with the variety real cameras see as options: photographic textures, motions from sub-pixel
-//! to 100+ px, still backgrounds and objects, small sprites, dark and low-contrast scenes.
+//! to 100+ px, still backgrounds and objects, small sprites, dark and low-contrast scenes, and a
+//! road under a camera driving ahead (`scene::ground`).
 
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -10,6 +11,7 @@ use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
+use super::ground::{FAR, Ground};
 use super::layered::{Fill, Layer, LayeredScene};
 use super::photos::{PhotoCrop, PhotoTextures};
 use super::shape::Shape;
@@ -64,6 +66,14 @@ pub struct ChairsConfig {
     pub brightness: [f64; 2],
     /// Contrast about mid-grey applied to every texture before the camera, drawn per sample.
     pub contrast: [f64; 2],
+    /// Share of samples with a ground plane over the background's lower part: a road under a
+    /// camera that drives ahead, whose flow grows from the horizon to the bottom row (KITTI's
+    /// perspective, which no similarity of the background gives). Samples whose background
+    /// stands still (`still_background`, `plain_background`) have none.
+    pub ground: f64,
+    /// The camera's advance between the frames, as a share of the distance to the nearest
+    /// ground it sees: the bottom row moves (H − horizon)·a/(1 − a) px.
+    pub ground_advance: [f64; 2],
 }
 
 /// The law of translation lengths.
@@ -116,6 +126,8 @@ impl Default for ChairsConfig {
             small_sprite_radius_px: [2.0, 10.0],
             brightness: [1.0, 1.0],
             contrast: [1.0, 1.0],
+            ground: 0.0,
+            ground_advance: [0.05, 0.4],
         }
     }
 }
@@ -186,6 +198,7 @@ impl ChairsConfig {
             ("scene.still_background", self.still_background),
             ("scene.still_sprites", self.still_sprites),
             ("scene.plain_background", self.plain_background),
+            ("scene.ground", self.ground),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return Err(Error::invalid(name, format!("must be in [0, 1], got {v}")));
@@ -205,6 +218,7 @@ impl ChairsConfig {
         )?;
         check_range("scene.brightness", self.brightness, 0.0, 10.0)?;
         check_range("scene.contrast", self.contrast, 0.0, 10.0)?;
+        check_range("scene.ground_advance", self.ground_advance, 0.0, 0.8)?;
         if self.supersample == 0 || self.supersample > 8 {
             return Err(Error::invalid(
                 "scene.supersample",
@@ -230,6 +244,7 @@ impl ChairsConfig {
             || self.small_sprites[1] > 0
             || self.brightness != [1.0, 1.0]
             || self.contrast != [1.0, 1.0]
+            || self.ground > 0.0
     }
 
     /// Draws the scene for `seed` and what it drew beyond the layers' geometry.
@@ -300,8 +315,52 @@ impl ChairsConfig {
                 image: Arc::new(bg_tex),
                 origin: (tw as f64 / 2.0, th as f64 / 2.0),
             },
-            poses: [pose1, centre_motion.compose(&pose1)],
+            poses: [pose1.into(), centre_motion.compose(&pose1).into()],
         });
+
+        // The ground, from its own stream: a config without it draws the scenes it always drew.
+        let mut g = rng::stream(seed, &[rng::purpose::SCENE, rng::purpose::GROUND]);
+        // A still camera (`still_background`) sees its ground stand still too: none is drawn.
+        if self.ground > 0.0 && g.random::<f64>() < self.ground && !still_background {
+            let ground = Ground {
+                f: w * g.random_range(0.5..0.8),
+                cx: w * g.random_range(0.4..0.6),
+                horizon: h * g.random_range(0.3..0.45),
+                height: h,
+                advance: uniform(&mut g, self.ground_advance),
+                slide: g.random_range(-0.1..=0.1),
+                turn: g.random_range(-1.5..=1.5f64).to_radians(),
+            };
+            // The patch: from just below the bottom row to FAR times as deep, wide enough to
+            // fill the frame at its far edge after the slide and the turn.
+            let (near, far) = (0.97 * ground.near(), FAR * ground.near());
+            let half = 1.2 * w / ground.f * far + 0.1;
+            // At most 1536 texture pixels on the patch's longer side.
+            let metres = (2.0 * half).max(far - near) / 1536.0;
+            let (tw, th) = ((2.0 * half / metres).ceil(), ((far - near) / metres).ceil());
+            let tex_seed = g.random();
+            let tex = texture(
+                &mut g,
+                false,
+                tex_seed,
+                th as usize,
+                tw as usize,
+                short as f32,
+            );
+            let z_centre = 0.5 * (near + far);
+            let (u, v) = (half / metres, 0.5 * (far - near) / metres);
+            let [p1, p2] = ground.poses(metres, z_centre);
+            layers.push(Layer {
+                shape: Shape::Polygon {
+                    vertices: vec![(-u, -v), (u, -v), (u, v), (-u, v)],
+                },
+                fill: Fill::Texture {
+                    image: Arc::new(tex),
+                    origin: (tw / 2.0, th / 2.0),
+                },
+                poses: [p1.into(), p2.into()],
+            });
+        }
 
         let count = r.random_range(self.sprites[0]..=self.sprites[1]);
         let small = if self.small_sprites[1] > 0 {
@@ -345,12 +404,13 @@ impl ChairsConfig {
                     origin: (size as f64 / 2.0, size as f64 / 2.0),
                 },
                 poses: [
-                    pose1,
+                    pose1.into(),
                     if still {
                         pose1
                     } else {
                         Affine::pose(x + dx, y + dy, theta + dtheta, s * ds)
-                    },
+                    }
+                    .into(),
                 ],
             });
         }
@@ -625,5 +685,93 @@ mod tests {
             .is_err()
         );
         assert!(serde_json::from_str::<ChairsConfig>(r#"{"sprite": [1, 2]}"#).is_err());
+    }
+
+    /// A ground plane under a camera driving ahead: below the patch's far edge the flow points
+    /// down and grows row by row to the bottom, where it is (H − horizon)·a/(1 − a) at most;
+    /// frame 2 at x + flow shows what frame 1 shows at x; the far world above does not move;
+    /// the same seed without the ground draws the same layers otherwise.
+    #[test]
+    fn a_ground_plane_flows_down_and_out_and_its_frames_agree() {
+        let still_world = ChairsConfig {
+            width: 160,
+            height: 120,
+            supersample: 2,
+            sprites: [0, 0],
+            background_translation: 0.0,
+            background_rotation_deg: 0.0,
+            background_zoom: [1.0, 1.0],
+            ..ChairsConfig::default()
+        };
+        let cfg = ChairsConfig {
+            ground: 1.0,
+            ground_advance: [0.2, 0.3],
+            ..still_world.clone()
+        };
+        for seed in [3u64, 4, 5] {
+            let scene = cfg.build(seed).unwrap();
+            assert_eq!(scene.layers.len(), 2, "background and ground");
+            let flow = scene.flow().unwrap();
+            // The mean downward flow of each row.
+            let row_v: Vec<f64> = (0..120)
+                .map(|y| (0..160).map(|x| flow.get(y, x).1 as f64).sum::<f64>() / 160.0)
+                .collect();
+            assert!(
+                row_v[..30].iter().all(|v| v.abs() < 1e-9),
+                "{:?}",
+                &row_v[..30]
+            );
+            let bottom = row_v[119];
+            assert!(
+                bottom > 5.0 && bottom <= 0.7 * 120.0 * 0.3 / 0.7 + 1.0,
+                "{bottom}"
+            );
+            for y in 100..119 {
+                assert!(
+                    row_v[y] < row_v[y + 1],
+                    "row {y}: {} then {}",
+                    row_v[y],
+                    row_v[y + 1]
+                );
+            }
+            // Brightness constancy where the ground stays in the frame.
+            let (f1, f2) = (scene.render(0).unwrap(), scene.render(1).unwrap());
+            let (mut moved, mut still, mut n) = (0.0, 0.0, 0);
+            for y in 70..110 {
+                for x in 30..130 {
+                    let (u, v) = flow.get(y, x);
+                    let (x2, y2) = (x as f32 + u, y as f32 + v);
+                    if !(0.0..158.0).contains(&x2) || !(0.0..118.0).contains(&y2) {
+                        continue;
+                    }
+                    for c in 0..3 {
+                        let a = f1.get(c, y, x);
+                        moved += (super::super::texture::sample_bilinear(&f2, c, x2, y2) - a).abs()
+                            as f64;
+                        still += (f2.get(c, y, x) - a).abs() as f64;
+                        n += 1;
+                    }
+                }
+            }
+            assert!(n > 3000, "{n}");
+            let (moved, still) = (moved / n as f64, still / n as f64);
+            assert!(
+                moved < 0.3 * still,
+                "seed {seed}: {moved} along the flow, {still} in place"
+            );
+            // Without the ground: the same background.
+            let plain = still_world.build(seed).unwrap();
+            assert_eq!(plain.records()[0], scene.records()[0]);
+        }
+        let bad = ChairsConfig {
+            ground_advance: [0.2, 0.9],
+            ..cfg
+        };
+        assert!(
+            bad.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("scene.ground_advance")
+        );
     }
 }

@@ -1,12 +1,13 @@
-//! Layered scenes: a background and sprites, each a textured shape with its own affine pose in
-//! frame 1 and frame 2, rendered with correct occlusion and exact forward flow (FlyingChairs).
+//! Layered scenes: a background and sprites, each a textured shape with its own pose (affine,
+//! or a plane's perspective) in frame 1 and frame 2, rendered with correct occlusion and exact
+//! forward flow (FlyingChairs; a road under a moving camera, as in KITTI).
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::affine::Affine;
+use super::pose::Pose;
 use super::shape::Shape;
 use super::texture::add_bilinear;
 use crate::error::{Error, Result};
@@ -30,14 +31,14 @@ pub struct Layer {
     pub shape: Shape,
     pub fill: Fill,
     /// Local → image coordinates in frame 1 and frame 2.
-    pub poses: [Affine; 2],
+    pub poses: [Pose; 2],
 }
 
 /// Serialisable record of a layer's geometry, for manifests.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LayerRecord {
     pub shape: Shape,
-    pub poses: [Affine; 2],
+    pub poses: [Pose; 2],
 }
 
 /// Layers bottom to top over a `width × height` frame with `channels` channels.
@@ -51,10 +52,11 @@ pub struct LayeredScene {
     pub supersample: usize,
 }
 
-/// A layer ready for rendering: inverse poses and a bounding circle in image coordinates.
+/// A layer ready for rendering: inverse poses and a bounding box in image coordinates
+/// (unbounded for a homography).
 struct Prepared<'a> {
     layer: &'a Layer,
-    inverse: [Affine; 2],
+    inverse: [Pose; 2],
     centre: [(f64, f64); 2],
     bound: [f64; 2],
 }
@@ -82,27 +84,22 @@ impl LayeredScene {
             .iter()
             .enumerate()
             .map(|(i, layer)| {
+                let name = |k: usize| format!("layer {i} pose in frame {}", k + 1);
+                for k in 0..2 {
+                    check_in_front(layer, k).map_err(|why| Error::invalid(name(k), why))?;
+                }
                 let inv = |k: usize| {
-                    layer.poses[k].inverse().ok_or_else(|| {
-                        Error::invalid(
-                            format!("layer {i} pose in frame {}", k + 1),
-                            "singular transform",
-                        )
-                    })
+                    layer.poses[k]
+                        .inverse()
+                        .ok_or_else(|| Error::invalid(name(k), "singular transform"))
                 };
-                let scale = |p: &Affine| {
-                    // The largest singular value bounds how far a local radius can stretch.
-                    let s = (p.a * p.a + p.b * p.b + p.c * p.c + p.d * p.d).sqrt();
-                    s * layer.shape.bound_radius()
-                };
+                // A homography's layer is checked in front above, so its origin has an image.
+                let centre = |k: usize| layer.poses[k].apply(0.0, 0.0).unwrap_or((0.0, 0.0));
                 Ok(Prepared {
                     layer,
                     inverse: [inv(0)?, inv(1)?],
-                    centre: [
-                        layer.poses[0].apply(0.0, 0.0),
-                        layer.poses[1].apply(0.0, 0.0),
-                    ],
-                    bound: [scale(&layer.poses[0]), scale(&layer.poses[1])],
+                    centre: [centre(0), centre(1)],
+                    bound: [0, 1].map(|k| layer.poses[k].reach(layer.shape.bound_radius())),
                 })
             })
             .collect()
@@ -121,7 +118,7 @@ impl LayeredScene {
             if b.is_finite() && ((x - cx).abs() > b || (y - cy).abs() > b) {
                 return None;
             }
-            let (lx, ly) = p.inverse[frame].apply(x, y);
+            let (lx, ly) = p.inverse[frame].apply(x, y)?;
             p.layer.shape.contains(lx, ly).then_some((p, lx, ly))
         })
     }
@@ -197,7 +194,8 @@ impl LayeredScene {
                         let (px, py) = (x as f64, y as f64);
                         match Self::hit(&prepared, 0, px, py) {
                             Some((p, lx, ly)) => {
-                                let (x2, y2) = p.layer.poses[1].apply(lx, ly);
+                                // In front in frame 2 wherever the layer is (`check_in_front`).
+                                let (x2, y2) = p.layer.poses[1].apply(lx, ly).unwrap_or((px, py));
                                 ((x2 - px) as f32, (y2 - py) as f32)
                             }
                             None => (0.0, 0.0),
@@ -232,15 +230,31 @@ impl LayeredScene {
     }
 }
 
+/// A layer under a homography must lie wholly in front of the camera in frame `k`: its shape a
+/// polygon (a plane's finite patch) whose every vertex has an image. Affine layers always do.
+fn check_in_front(layer: &Layer, k: usize) -> std::result::Result<(), String> {
+    let pose = &layer.poses[k];
+    if let Pose::Affine(_) = pose {
+        return Ok(());
+    }
+    match &layer.shape {
+        Shape::Polygon { vertices } if pose.in_front(vertices) => Ok(()),
+        Shape::Polygon { .. } => Err("part of the plane's patch lies beyond the horizon".into()),
+        _ => Err("a homography needs a polygon (the plane's finite patch)".into()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::affine::Affine;
+    use crate::scene::pose::Homography;
 
     fn two_layer_scene() -> LayeredScene {
         let bg = Layer {
             shape: Shape::Full,
             fill: Fill::Flat(vec![0.1]),
-            poses: [Affine::IDENTITY; 2],
+            poses: [Pose::IDENTITY; 2],
         };
         let square = Layer {
             shape: Shape::Polygon {
@@ -248,8 +262,8 @@ mod tests {
             },
             fill: Fill::Flat(vec![0.9]),
             poses: [
-                Affine::translation(10.0, 10.0),
-                Affine::translation(13.0, 8.0),
+                Affine::translation(10.0, 10.0).into(),
+                Affine::translation(13.0, 8.0).into(),
             ],
         };
         LayeredScene {
@@ -277,7 +291,7 @@ mod tests {
     #[test]
     fn rotation_flow_matches_pose_difference() {
         let mut scene = two_layer_scene();
-        scene.layers[1].poses[1] = Affine::pose(10.0, 10.0, 0.1, 1.05);
+        scene.layers[1].poses[1] = Affine::pose(10.0, 10.0, 0.1, 1.05).into();
         let flow = scene.flow().unwrap();
         let (u, v) = flow.get(12, 13);
         let (x2, y2) = Affine::pose(10.0, 10.0, 0.1, 1.05).apply(3.0, 2.0);
@@ -295,5 +309,126 @@ mod tests {
         assert!(!scene.is_static());
         scene.layers[1].poses[1] = scene.layers[1].poses[0];
         assert!(scene.is_static());
+    }
+
+    /// A ground plane (X right, Z ahead, metres) under a camera 1.5 m up with focal length
+    /// 20 px and the horizon at row 6, for a camera moved `tz` metres ahead: x = 16 + 20 X/Z,
+    /// y = 6 + 30/Z.
+    fn ground(tz: f64) -> Homography {
+        Homography {
+            m: [
+                20.0,
+                16.0,
+                -16.0 * tz,
+                0.0,
+                6.0,
+                30.0 - 6.0 * tz,
+                0.0,
+                1.0,
+                -tz,
+            ],
+        }
+    }
+
+    /// The plane's patch X in [-4, 4], Z in [1.5, 12] over a flat sky: the flow is the two
+    /// homographies' difference, frame 2 shows at x + flow what frame 1 shows at x (the
+    /// ground's texture is a ramp in Z, so every row differs), and above the patch's far edge
+    /// the sky shows through.
+    #[test]
+    fn a_ground_plane_moves_by_its_homography_and_ends_at_its_far_edge() {
+        let mut ramp = Image::zeros(1, 64, 8);
+        for y in 0..64 {
+            ramp.plane_mut(0)[y * 8..(y + 1) * 8].fill(y as f32 / 64.0);
+        }
+        let ground_layer = Layer {
+            shape: Shape::Polygon {
+                vertices: vec![(-4.0, 1.5), (4.0, 1.5), (4.0, 12.0), (-4.0, 12.0)],
+            },
+            fill: Fill::Flat(vec![0.5]),
+            poses: [ground(0.0).into(), ground(0.5).into()],
+        };
+        let sky = Layer {
+            shape: Shape::Full,
+            fill: Fill::Flat(vec![0.9]),
+            poses: [Pose::IDENTITY; 2],
+        };
+        let mut scene = LayeredScene {
+            width: 32,
+            height: 24,
+            channels: 1,
+            layers: vec![sky, ground_layer],
+            supersample: 1,
+        };
+        let flow = scene.flow().unwrap();
+        // Row 20 sees Z = 30 / 14; a camera 0.5 m ahead sees it at y = 6 + 30 / (Z − 0.5).
+        let z = 30.0 / 14.0;
+        let (u, v) = flow.get(20, 16);
+        assert!(
+            u.abs() < 1e-4 && (v as f64 - (30.0 / (z - 0.5) - 14.0)).abs() < 1e-4,
+            "{v}"
+        );
+        // Row 7 (Z = 30) is beyond the patch: the still sky.
+        assert_eq!(flow.get(7, 16), (0.0, 0.0));
+        let f1 = scene.render(0).unwrap();
+        assert_eq!((f1.get(0, 20, 16), f1.get(0, 7, 16)), (0.5, 0.9));
+        // Brightness constancy on a textured ground: local (X, 5.3 Z), texture pixel
+        // (X + 4, 5.3 (Z − 1.5)).
+        let stretch = Homography {
+            m: [1.0, 0.0, 0.0, 0.0, 1.0 / 5.3, 0.0, 0.0, 0.0, 1.0],
+        };
+        scene.layers[1] = Layer {
+            shape: Shape::Polygon {
+                vertices: vec![(-4.0, 7.95), (4.0, 7.95), (4.0, 63.6), (-4.0, 63.6)],
+            },
+            fill: Fill::Texture {
+                image: Arc::new(ramp),
+                origin: (4.0, -7.95),
+            },
+            poses: [
+                ground(0.0).compose(&stretch).into(),
+                ground(0.5).compose(&stretch).into(),
+            ],
+        };
+        let (f1, f2) = (scene.render(0).unwrap(), scene.render(1).unwrap());
+        let flow = scene.flow().unwrap();
+        // Rows 12, 16, 18 see Z = 5, 3, 2.5 and move 0.67, 2 and 3 rows down.
+        for (y, want) in [(12usize, 6.0 + 30.0 / 4.5 - 12.0), (16, 2.0), (18, 3.0)] {
+            let (u, v) = flow.get(y, 16);
+            assert!(
+                u.abs() < 1e-4 && (v as f64 - want).abs() < 1e-4,
+                "row {y}: {v}"
+            );
+            // Frame 2 between its rows, linearly.
+            let y2 = y as f64 + v as f64;
+            let (y0, t) = (y2.floor() as usize, (y2 - y2.floor()) as f32);
+            let b = f2.get(0, y0, 16) * (1.0 - t) + f2.get(0, y0 + 1, 16) * t;
+            let a = f1.get(0, y, 16);
+            assert!((b - a).abs() < 0.02, "row {y}: {b} vs {a}");
+            assert!(
+                (f2.get(0, y, 16) - a).abs() > 0.01,
+                "row {y}: the ramp moved"
+            );
+        }
+    }
+
+    /// A homography on an unbounded shape, or a patch reaching beyond the horizon, is refused.
+    #[test]
+    fn a_plane_beyond_its_horizon_is_refused() {
+        let mut scene = two_layer_scene();
+        scene.layers[0].poses = [ground(0.0).into(), ground(0.0).into()];
+        let e = scene.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("layer 0 pose in frame 1") && e.contains("polygon"),
+            "{e}"
+        );
+        scene.layers[0].shape = Shape::Polygon {
+            vertices: vec![(-4.0, 1.0), (4.0, 1.0), (4.0, 12.0), (-4.0, 12.0)],
+        };
+        scene.layers[0].poses[1] = ground(2.0).into();
+        let e = scene.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("frame 2") && e.contains("beyond the horizon"),
+            "{e}"
+        );
     }
 }

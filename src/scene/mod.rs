@@ -2,9 +2,11 @@
 
 pub mod affine;
 pub mod chairs;
+pub mod ground;
 pub mod layered;
 pub mod patterns;
 pub mod photos;
+pub mod pose;
 pub mod readers;
 pub mod shape;
 pub mod texture;
@@ -14,4 +16,5 @@ pub mod truth;
 pub use affine::Affine;
 pub use chairs::{ChairsConfig, ChairsDraw, TranslationLaw};
 pub use layered::{Fill, Layer, LayeredScene};
+pub use pose::{Homography, Pose};
 pub use shape::Shape;

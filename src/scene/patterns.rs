@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
 use super::layered::{Fill, Layer, LayeredScene};
+use super::pose::Pose;
 use super::shape::Shape;
 use crate::error::{Error, Result};
 use crate::types::Image;
@@ -57,7 +58,7 @@ fn dark_background(channels: usize) -> Layer {
     Layer {
         shape: Shape::Full,
         fill: Fill::Flat(vec![0.05; channels]),
-        poses: [Affine::IDENTITY; 2],
+        poses: [Pose::IDENTITY; 2],
     }
 }
 
@@ -75,14 +76,14 @@ pub fn rocket(step: RocketStep, channels: usize) -> LayeredScene {
             vertices: rocket_outline(),
         },
         fill: Fill::Flat(vec![0.9; channels]),
-        poses,
+        poses: poses.map(Pose::from),
     };
     let window = Layer {
         shape: Shape::Disc { radius: 9.0 },
         fill: Fill::Flat(vec![0.35; channels]),
         poses: [
-            poses[0].compose(&Affine::translation(0.0, -30.0)),
-            poses[1].compose(&Affine::translation(0.0, -30.0)),
+            poses[0].compose(&Affine::translation(0.0, -30.0)).into(),
+            poses[1].compose(&Affine::translation(0.0, -30.0)).into(),
         ],
     };
     LayeredScene {
@@ -107,8 +108,8 @@ pub fn disc(radius: f64, channels: usize) -> Result<LayeredScene> {
         shape: Shape::Disc { radius },
         fill: Fill::Flat(vec![0.9; channels]),
         poses: [
-            Affine::translation(c - 7.5, c),
-            Affine::translation(c + 7.5, c),
+            Affine::translation(c - 7.5, c).into(),
+            Affine::translation(c + 7.5, c).into(),
         ],
     };
     Ok(LayeredScene {

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
 use super::layered::{Fill, Layer, LayeredScene};
+use super::pose::Pose;
 use super::shape::Shape;
 use super::texture::procedural;
 use crate::error::{Error, Result};
@@ -209,7 +210,7 @@ impl TrajectoryConfig {
                 image: Arc::new(bg),
                 origin: (0.0, 0.0),
             },
-            poses: [Affine::IDENTITY; 2],
+            poses: [Pose::IDENTITY; 2],
         }];
         for (i, o) in self.objects.iter().enumerate() {
             let size = (2.0 * o.radius).ceil() as usize + 4;
@@ -228,8 +229,8 @@ impl TrajectoryConfig {
                     origin: (size as f64 / 2.0, size as f64 / 2.0),
                 },
                 poses: [
-                    Affine::translation(from.0, from.1),
-                    Affine::translation(to.0, to.1),
+                    Affine::translation(from.0, from.1).into(),
+                    Affine::translation(to.0, to.1).into(),
                 ],
             });
         }
