@@ -11,7 +11,7 @@ use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
-use super::ground::{FAR, Ground};
+use super::ground::{FAR, FAR_MIN, Ground};
 use super::layered::{Fill, Layer, LayeredScene};
 use super::photos::{PhotoCrop, PhotoTextures};
 use super::shape::Shape;
@@ -350,10 +350,15 @@ impl ChairsConfig {
             let z_centre = 0.5 * (near + far);
             let (u, v) = (half / metres, 0.5 * (far - near) / metres);
             let [p1, p2] = ground.poses(metres, z_centre);
+            // The near edge below the bottom row; the far edge uneven, seven points each
+            // FAR_MIN..FAR times the nearest depth (a skyline, not one straight boundary).
+            let mut vertices = vec![(-u, v), (u, v)];
+            for k in 0..7 {
+                let z = ground.near() * g.random_range(FAR_MIN..=FAR);
+                vertices.push((u - 2.0 * u * k as f64 / 6.0, (z_centre - z) / metres));
+            }
             layers.push(Layer {
-                shape: Shape::Polygon {
-                    vertices: vec![(-u, -v), (u, -v), (u, v), (-u, v)],
-                },
+                shape: Shape::Polygon { vertices },
                 fill: Fill::Texture {
                     image: Arc::new(tex),
                     origin: (tw / 2.0, th / 2.0),

@@ -13,10 +13,11 @@ use super::pose::Homography;
 /// the image, so the height fixes the unit of the depths and the advance, nothing else.
 pub const HEIGHT: f64 = 1.65;
 
-/// The far edge of the plane's patch, as a multiple of the nearest depth the frame sees: the
-/// edge lies a quarter of the way from the horizon to the bottom row, and the far world (the
-/// layer below) shows above it.
+/// The far edge of the plane's patch, as multiples of the nearest depth the frame sees: the
+/// edge lies between a quarter and two fifths of the way from the horizon to the bottom row,
+/// and the far world (the layer below) shows above it.
 pub const FAR: f64 = 4.0;
+pub const FAR_MIN: f64 = 2.5;
 
 /// One camera over one ground, frame 1 to frame 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
