@@ -331,10 +331,12 @@ impl ChairsConfig {
                 slide: g.random_range(-0.1..=0.1),
                 turn: g.random_range(-1.5..=1.5f64).to_radians(),
             };
-            // The patch: from just below the bottom row to FAR times as deep, wide enough to
-            // fill the frame at its far edge after the slide and the turn.
+            // The patch: from just below the bottom row to FAR times as deep, a trapezoid twice
+            // as wide as the view at every depth (so the slide and the turn stay inside it, and
+            // its near corners stay in front of the camera in frame 2).
             let (near, far) = (0.97 * ground.near(), FAR * ground.near());
-            let half = 1.2 * w / ground.f * far + 0.1;
+            let half_at = |z: f64| 1.2 * w / ground.f * z + 0.1;
+            let half = half_at(far);
             // At most 1536 texture pixels on the patch's longer side.
             let metres = (2.0 * half).max(far - near) / 1536.0;
             let (tw, th) = ((2.0 * half / metres).ceil(), ((far - near) / metres).ceil());
@@ -352,7 +354,8 @@ impl ChairsConfig {
             let [p1, p2] = ground.poses(metres, z_centre);
             // The near edge below the bottom row; the far edge uneven, seven points each
             // FAR_MIN..FAR times the nearest depth (a skyline, not one straight boundary).
-            let mut vertices = vec![(-u, v), (u, v)];
+            let u_near = half_at(near) / metres;
+            let mut vertices = vec![(-u_near, v), (u_near, v)];
             for k in 0..7 {
                 let z = ground.near() * g.random_range(FAR_MIN..=FAR);
                 vertices.push((u - 2.0 * u * k as f64 / 6.0, (z_centre - z) / metres));

@@ -286,6 +286,15 @@ fn a_ground_plane_flows_down_and_out_and_its_frames_agree() {
         let plain = still_world.build(seed).unwrap();
         assert_eq!(plain.records()[0], scene.records()[0]);
     }
+    // The largest advance with the widest turns and views: every scene is drawn.
+    let fast = ChairsConfig {
+        ground_advance: [0.8, 0.8],
+        sprites: [0, 0],
+        ..cfg.clone()
+    };
+    for seed in 0..64u64 {
+        assert!(fast.build(seed).is_ok(), "seed {seed}: {:?}", fast.build(seed).err());
+    }
     let bad = ChairsConfig {
         ground_advance: [0.2, 0.9],
         ..cfg
