@@ -293,7 +293,11 @@ fn a_ground_plane_flows_down_and_out_and_its_frames_agree() {
         ..cfg.clone()
     };
     for seed in 0..64u64 {
-        assert!(fast.build(seed).is_ok(), "seed {seed}: {:?}", fast.build(seed).err());
+        assert!(
+            fast.build(seed).is_ok(),
+            "seed {seed}: {:?}",
+            fast.build(seed).err()
+        );
     }
     let bad = ChairsConfig {
         ground_advance: [0.2, 0.9],
