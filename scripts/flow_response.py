@@ -84,7 +84,9 @@ def dataset(root, every):
     files = sorted(glob.glob(os.path.join(root, "*_flow.flo")))[::every]
     if not files:
         sys.exit(f"flow_response: {root} holds no *_flow.flo")
-    lengths = np.concatenate([np.linalg.norm(read_flo(f), axis=-1).ravel() for f in files])
+    flows = [read_flo(f).reshape(-1, 2) for f in files]
+    # Shares of the known pixels (KITTI's sparse truth marks the rest unknown).
+    lengths = np.concatenate([np.linalg.norm(f[(np.isfinite(f) & (np.abs(f) < 1e9)).all(-1)], axis=-1) for f in flows])
     shares = [f"still {(lengths < 0.05).mean():.2f}"]
     shares += [f"{band_name(lo, hi)} {((lengths >= lo) & (lengths < hi)).mean():.2f}" for lo, hi in BANDS]
     print(f"{root}: {len(files)} pairs; share of pixels: " + ", ".join(shares))
