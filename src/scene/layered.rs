@@ -93,7 +93,7 @@ impl LayeredScene {
                         .inverse()
                         .ok_or_else(|| Error::invalid(name(k), "singular transform"))
                 };
-                // A homography's layer is checked in front above, so its origin has an image.
+                // Only an affine layer's centre is read (a homography's reach is unbounded).
                 let centre = |k: usize| layer.poses[k].apply(0.0, 0.0).unwrap_or((0.0, 0.0));
                 Ok(Prepared {
                     layer,
