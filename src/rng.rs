@@ -39,6 +39,8 @@ pub mod purpose {
     pub const VARIETY: u64 = 7;
     /// A chairs scene's ground plane (`scene::ground`), apart from every other draw.
     pub const GROUND: u64 = 8;
+    /// The boxes standing on that ground (`scene::block`), apart from the ground's own draws.
+    pub const GROUND_OBJECTS: u64 = 9;
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! motion and textured blob sprites under independent translations, rotations and scalings,
 //! with the variety real cameras see as options: photographic textures, motions from sub-pixel
 //! to 100+ px, still backgrounds and objects, small sprites, dark and low-contrast scenes, and a
-//! road under a camera driving ahead (`scene::ground`).
+//! road under a camera driving ahead with boxes standing on it (`chairs::road`).
 
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -11,7 +11,6 @@ use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
 use super::affine::Affine;
-use super::ground::{FAR, FAR_MIN, Ground};
 use super::layered::{Fill, Layer, LayeredScene};
 use super::photos::{PhotoCrop, PhotoTextures};
 use super::shape::Shape;
@@ -74,6 +73,10 @@ pub struct ChairsConfig {
     /// The camera's advance between the frames, as a share of the distance to the nearest
     /// ground it sees: the bottom row moves (H − horizon)·a/(1 − a) px.
     pub ground_advance: [f64; 2],
+    /// Boxes standing on a sample's ground (parked cars, vans, posts, walls: 0.3–2.5 m wide,
+    /// 0.3–8 m long, 0.3–3.5 m tall), still in the world, so that each face moves with the
+    /// camera's motion at its own depth and hides the road behind it; their count per ground.
+    pub ground_objects: [usize; 2],
 }
 
 /// The law of translation lengths.
@@ -128,6 +131,7 @@ impl Default for ChairsConfig {
             contrast: [1.0, 1.0],
             ground: 0.0,
             ground_advance: [0.05, 0.4],
+            ground_objects: [0, 0],
         }
     }
 }
@@ -219,6 +223,12 @@ impl ChairsConfig {
         check_range("scene.brightness", self.brightness, 0.0, 10.0)?;
         check_range("scene.contrast", self.contrast, 0.0, 10.0)?;
         check_range("scene.ground_advance", self.ground_advance, 0.0, 0.8)?;
+        if self.ground_objects[0] > self.ground_objects[1] || self.ground_objects[1] > 32 {
+            return Err(Error::invalid(
+                "scene.ground_objects",
+                format!("expected min <= max <= 32, got {:?}", self.ground_objects),
+            ));
+        }
         if self.supersample == 0 || self.supersample > 8 {
             return Err(Error::invalid(
                 "scene.supersample",
@@ -318,56 +328,11 @@ impl ChairsConfig {
             poses: [pose1.into(), centre_motion.compose(&pose1).into()],
         });
 
-        // The ground, from its own stream: a config without it draws the scenes it always drew.
-        let mut g = rng::stream(seed, &[rng::purpose::SCENE, rng::purpose::GROUND]);
-        // A still camera (`still_background`) sees its ground stand still too: none is drawn.
-        if self.ground > 0.0 && g.random::<f64>() < self.ground && !still_background {
-            let ground = Ground {
-                f: w * g.random_range(0.5..0.8),
-                cx: w * g.random_range(0.4..0.6),
-                horizon: h * g.random_range(0.3..0.45),
-                height: h,
-                advance: uniform(&mut g, self.ground_advance),
-                slide: g.random_range(-0.1..=0.1),
-                turn: g.random_range(-1.5..=1.5f64).to_radians(),
-            };
-            // The patch: from just below the bottom row to FAR times as deep, a trapezoid twice
-            // as wide as the view at every depth (so the slide and the turn stay inside it, and
-            // its near corners stay in front of the camera in frame 2).
-            let (near, far) = (0.97 * ground.near(), FAR * ground.near());
-            let half_at = |z: f64| 1.2 * w / ground.f * z + 0.1;
-            let half = half_at(far);
-            // At most 1536 texture pixels on the patch's longer side.
-            let metres = (2.0 * half).max(far - near) / 1536.0;
-            let (tw, th) = ((2.0 * half / metres).ceil(), ((far - near) / metres).ceil());
-            let tex_seed = g.random();
-            let tex = texture(
-                &mut g,
-                false,
-                tex_seed,
-                th as usize,
-                tw as usize,
-                short as f32,
-            );
-            let z_centre = 0.5 * (near + far);
-            let (u, v) = (half / metres, 0.5 * (far - near) / metres);
-            let [p1, p2] = ground.poses(metres, z_centre);
-            // The near edge below the bottom row; the far edge uneven, seven points each
-            // FAR_MIN..FAR times the nearest depth (a skyline, not one straight boundary).
-            let u_near = half_at(near) / metres;
-            let mut vertices = vec![(-u_near, v), (u_near, v)];
-            for k in 0..7 {
-                let z = ground.near() * g.random_range(FAR_MIN..=FAR);
-                vertices.push((u - 2.0 * u * k as f64 / 6.0, (z_centre - z) / metres));
-            }
-            layers.push(Layer {
-                shape: Shape::Polygon { vertices },
-                fill: Fill::Texture {
-                    image: Arc::new(tex),
-                    origin: (tw / 2.0, th / 2.0),
-                },
-                poses: [p1.into(), p2.into()],
-            });
+        // The ground and what stands on it, from their own streams: a config without them draws
+        // the scenes it always drew. A still camera (`still_background`) sees its ground stand
+        // still too: none is drawn.
+        if !still_background {
+            layers.extend(road::draw(self, seed, &mut texture));
         }
 
         let count = r.random_range(self.sprites[0]..=self.sprites[1]);
@@ -484,5 +449,6 @@ fn disc_sample(r: &mut rng::Rng, max: f64) -> (f64, f64) {
     (rad * phi.cos(), rad * phi.sin())
 }
 
+mod road;
 #[cfg(test)]
 mod tests;

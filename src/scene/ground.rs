@@ -88,6 +88,60 @@ impl Ground {
         let p = self.project();
         [p.compose(&local), p.compose(&self.motion()).compose(&local)]
     }
+
+    /// The poses (local → image) in frame 1 and frame 2 of any plane of the world: local (u, v)
+    /// is the point `origin + u·e_u + v·e_v`, in world metres with X to the right, Y up from the
+    /// ground and Z ahead (the camera at (0, HEIGHT, 0) in frame 1). A face standing on the
+    /// ground (`scene::block`) is such a plane; on the ground itself this is [`Ground::poses`].
+    pub fn plane_poses(&self, origin: [f64; 3], e_u: [f64; 3], e_v: [f64; 3]) -> [Homography; 2] {
+        let (tz, tx) = (self.advance * self.near(), self.slide);
+        let (s, c) = self.turn.sin_cos();
+        // Each frame's camera coordinates of world (X, Y, Z, 1): X_c, HEIGHT − Y_c, Z_c.
+        let cameras: [[[f64; 4]; 3]; 2] = [
+            [
+                [1.0, 0.0, 0.0, 0.0],
+                [0.0, -1.0, 0.0, HEIGHT],
+                [0.0, 0.0, 1.0, 0.0],
+            ],
+            [
+                [c, 0.0, -s, -c * tx + s * tz],
+                [0.0, -1.0, 0.0, HEIGHT],
+                [s, 0.0, c, -s * tx - c * tz],
+            ],
+        ];
+        cameras.map(|cam| {
+            // The camera coordinates of local (u, v, 1): 3×3, columns e_u, e_v, origin.
+            let mut m = [0.0; 9];
+            for (r, row) in cam.iter().enumerate() {
+                for (k, col) in [e_u, e_v, origin].iter().enumerate() {
+                    m[3 * r + k] = row[0] * col[0]
+                        + row[1] * col[1]
+                        + row[2] * col[2]
+                        + if k == 2 { row[3] } else { 0.0 };
+                }
+            }
+            // x = c_x + f·X_c/Z_c, y = horizon + f·(HEIGHT − Y_c)/Z_c.
+            let intrinsics = Homography {
+                m: [
+                    self.f,
+                    0.0,
+                    self.cx,
+                    0.0,
+                    self.f,
+                    self.horizon,
+                    0.0,
+                    0.0,
+                    1.0,
+                ],
+            };
+            intrinsics.compose(&Homography { m })
+        })
+    }
+
+    /// The camera's position on the ground in frame 1 and frame 2, (X, Z) metres.
+    pub fn positions(&self) -> [(f64, f64); 2] {
+        [(0.0, 0.0), (self.slide, self.advance * self.near())]
+    }
 }
 
 #[cfg(test)]
@@ -131,6 +185,38 @@ mod tests {
         let (x1, _) = p1.apply(100.0, (10.0 - 2.0 * near) / 0.01).unwrap();
         let (x2, _) = p2.apply(100.0, (10.0 - 2.0 * near) / 0.01).unwrap();
         assert!(x1 > 256.0 && x2 > x1);
+    }
+
+    /// On the ground plane the general plane's poses are the ground's; a face standing upright
+    /// ahead of a camera driving straight grows about the horizon's centre by z/(z − t_z).
+    #[test]
+    fn a_plane_of_the_world_sees_what_the_ground_sees_and_fronts_grow() {
+        let g = Ground {
+            slide: 0.07,
+            turn: 0.013,
+            ..ground()
+        };
+        let [p1, p2] = g.poses(0.01, 10.0);
+        let [q1, q2] = g.plane_poses([0.0, 0.0, 10.0], [0.01, 0.0, 0.0], [0.0, 0.0, -0.01]);
+        for (u, v) in [(0.0, 0.0), (120.0, -300.0), (-400.0, 700.0)] {
+            for (p, q) in [(p1, q1), (p2, q2)] {
+                let (a, b) = (p.apply(u, v).unwrap(), q.apply(u, v).unwrap());
+                assert!((a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9);
+            }
+        }
+        let g = ground();
+        let (z, tz) = (12.0, 0.3 * g.near());
+        let [f1, f2] = g.plane_poses([1.0, 0.8, z], [0.01, 0.0, 0.0], [0.0, -0.01, 0.0]);
+        for (u, v) in [(0.0, 0.0), (50.0, 60.0), (-90.0, -40.0)] {
+            let (x1, y1) = f1.apply(u, v).unwrap();
+            let (x2, y2) = f2.apply(u, v).unwrap();
+            let k = z / (z - tz);
+            assert!((x2 - 256.0 - k * (x1 - 256.0)).abs() < 1e-9);
+            assert!((y2 - 150.0 - k * (y1 - 150.0)).abs() < 1e-9);
+        }
+        // Its foot stands on the ground: the bottom edge's row is the ground's at depth z.
+        let (_, y_foot) = f1.apply(0.0, 80.0).unwrap();
+        assert!((y_foot - (150.0 + 300.0 * HEIGHT / z)).abs() < 1e-9);
     }
 
     /// Turning right moves the whole road left, the far part by f·ψ.

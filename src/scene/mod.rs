@@ -1,6 +1,7 @@
 //! What the camera looks at: procedural layered scenes with exact flow, test patterns, readers.
 
 pub mod affine;
+pub mod block;
 pub mod chairs;
 pub mod ground;
 pub mod layered;

@@ -18,10 +18,11 @@
 //! (each source in proportion), at sample index `VAL_BASE + j`.
 //!
 //! The fingerprint (kept by checkpoints, so that a resume on other data is refused) hashes each
-//! source's share of the weights, its config as parsed (defaults filled in, paths as written),
-//! its photographs' names and pixels, and the bytes of one probe sample
-//! (`PROBE`) made when the stream opens: what the configs do not say — the PSF file, the
-//! generator's code, the machine's arithmetic — shows in the probe.
+//! source's share of the weights, its config as written (as a JSON value, keys sorted: not its
+//! layout), its photographs' names and pixels, and the bytes of one probe sample (`PROBE`) made
+//! when the stream opens: what the configs do not say — the defaults, the PSF file, the
+//! generator's code, the machine's arithmetic — shows in the probe. A knob added to the
+//! generator later, off by default, changes neither, so a campaign goes on across it.
 
 use std::path::{Path, PathBuf};
 
@@ -121,9 +122,10 @@ impl Stream {
                 ));
             };
             smallest = (smallest.0.min(chairs.height), smallest.1.min(chairs.width));
-            // The data's identity: the share, the config as parsed with its paths as written
-            // (so the checkout may move), the photographs, a probe.
-            let written: GeneratorConfig = crate::io::read_json(&file)?;
+            // The data's identity: the share, the config as written (its keys in order, so
+            // neither its layout nor a move of the checkout counts; a knob added to the code
+            // later, off by default, leaves it as it was), the photographs, a probe.
+            let written: serde_json::Value = crate::io::read_json(&file)?;
             hash.update((source.weight / total).to_le_bytes());
             hash.update(
                 serde_json::to_string(&written)
@@ -317,6 +319,16 @@ mod tests {
         }
         let text = r#"{"sources": [{"generator": "a.json", "weight": 1}, {"generator": "b.json", "weight": 3}]}"#;
         let moved_mix = write(&moved, "mix.json", text);
+        assert_eq!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
+        // Nor does the layout of a config: its keys in another order, other spacing.
+        let relaid: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(moved.join("a.json")).unwrap()).unwrap();
+        let relaid = serde_json::to_string_pretty(&relaid).unwrap();
+        assert_ne!(
+            relaid,
+            std::fs::read_to_string(moved.join("a.json")).unwrap()
+        );
+        write(&moved, "a.json", &relaid);
         assert_eq!(Stream::open(&moved_mix).unwrap().fingerprint(), &f0);
         // The scale of the weights changes neither the pairs nor the fingerprint; a seed or a
         // count (where the training indices start) does.

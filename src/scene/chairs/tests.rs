@@ -310,3 +310,83 @@ fn a_ground_plane_flows_down_and_out_and_its_frames_agree() {
             .contains("scene.ground_advance")
     );
 }
+
+/// Boxes standing on the road: each sample draws the same background and ground as without
+/// them, then one to four faces per box; frame 2 at x + flow shows what frame 1 shows at x
+/// (on average, over the pixels the boxes hide in one frame too); the largest advance with the
+/// most boxes draws every scene; the count is validated.
+#[test]
+fn boxes_on_the_road_keep_the_road_and_their_frames_agree() {
+    let road = ChairsConfig {
+        width: 160,
+        height: 120,
+        supersample: 2,
+        sprites: [0, 0],
+        background_translation: 0.0,
+        background_rotation_deg: 0.0,
+        background_zoom: [1.0, 1.0],
+        ground: 1.0,
+        ground_advance: [0.2, 0.3],
+        ..ChairsConfig::default()
+    };
+    let cfg = ChairsConfig {
+        ground_objects: [3, 6],
+        ..road.clone()
+    };
+    let mut faces = 0;
+    for seed in [3u64, 4, 5, 6] {
+        let scene = cfg.build(seed).unwrap();
+        let plain = road.build(seed).unwrap();
+        assert_eq!(plain.layers.len(), 2);
+        assert_eq!(scene.records()[..2], plain.records()[..]);
+        faces += scene.layers.len() - 2;
+        // Brightness constancy below the horizon's band, where the boxes and the road are.
+        let flow = scene.flow().unwrap();
+        let (f1, f2) = (scene.render(0).unwrap(), scene.render(1).unwrap());
+        let (mut moved, mut still, mut n) = (0.0, 0.0, 0);
+        for y in 40..118 {
+            for x in 2..158 {
+                let (u, v) = flow.get(y, x);
+                let (x2, y2) = (x as f32 + u, y as f32 + v);
+                if !(0.0..158.0).contains(&x2) || !(0.0..118.0).contains(&y2) {
+                    continue;
+                }
+                for c in 0..3 {
+                    let a = f1.get(c, y, x);
+                    moved +=
+                        (super::super::texture::sample_bilinear(&f2, c, x2, y2) - a).abs() as f64;
+                    still += (f2.get(c, y, x) - a).abs() as f64;
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 3 * 5000, "{n}");
+        assert!(
+            moved < 0.25 * still,
+            "seed {seed}: {moved} along the flow, {still} in place"
+        );
+    }
+    assert!(faces >= 4 * 3, "{faces} faces in 4 scenes");
+    let crowded = ChairsConfig {
+        ground_advance: [0.8, 0.8],
+        ground_objects: [32, 32],
+        ..cfg.clone()
+    };
+    for seed in 0..32u64 {
+        assert!(
+            crowded.build(seed).is_ok(),
+            "seed {seed}: {:?}",
+            crowded.build(seed).err()
+        );
+    }
+    for bad in [[4, 3], [0, 33]] {
+        let err = ChairsConfig {
+            ground_objects: bad,
+            ..cfg.clone()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("scene.ground_objects"), "{err}");
+    }
+}
