@@ -52,13 +52,12 @@ pub struct LayeredScene {
     pub supersample: usize,
 }
 
-/// A layer ready for rendering: inverse poses and a bounding box in image coordinates
-/// (unbounded for a homography).
+/// A layer ready for rendering: inverse poses and, per frame, a box in image coordinates
+/// `[x_min, x_max, y_min, y_max]` outside which the layer shows nowhere (`None`: unbounded).
 struct Prepared<'a> {
     layer: &'a Layer,
     inverse: [Pose; 2],
-    centre: [(f64, f64); 2],
-    bound: [f64; 2],
+    bounds: [Option<[f64; 4]>; 2],
 }
 
 impl LayeredScene {
@@ -93,13 +92,10 @@ impl LayeredScene {
                         .inverse()
                         .ok_or_else(|| Error::invalid(name(k), "singular transform"))
                 };
-                // Only an affine layer's centre is read (a homography's reach is unbounded).
-                let centre = |k: usize| layer.poses[k].apply(0.0, 0.0).unwrap_or((0.0, 0.0));
                 Ok(Prepared {
                     layer,
                     inverse: [inv(0)?, inv(1)?],
-                    centre: [centre(0), centre(1)],
-                    bound: [0, 1].map(|k| layer.poses[k].reach(layer.shape.bound_radius())),
+                    bounds: [image_bounds(layer, 0), image_bounds(layer, 1)],
                 })
             })
             .collect()
@@ -113,9 +109,9 @@ impl LayeredScene {
         y: f64,
     ) -> Option<(&'a Prepared<'a>, f64, f64)> {
         prepared.iter().rev().find_map(|p| {
-            let (cx, cy) = p.centre[frame];
-            let b = p.bound[frame];
-            if b.is_finite() && ((x - cx).abs() > b || (y - cy).abs() > b) {
+            if let Some([x0, x1, y0, y1]) = p.bounds[frame]
+                && (x < x0 || x > x1 || y < y0 || y > y1)
+            {
                 return None;
             }
             let (lx, ly) = p.inverse[frame].apply(x, y)?;
@@ -227,6 +223,41 @@ impl LayeredScene {
                 poses: l.poses,
             })
             .collect()
+    }
+}
+
+/// Where layer's shape can show in frame `k`: for an affine pose, the square of its bound
+/// radius's reach about the origin's image; for a polygon wholly in front of a homography's
+/// camera (`check_in_front`), the box of its vertices' images (a homography keeps straight
+/// lines straight there), widened by 1e-6 px against rounding; else unbounded.
+fn image_bounds(layer: &Layer, k: usize) -> Option<[f64; 4]> {
+    let pose = &layer.poses[k];
+    match (pose, &layer.shape) {
+        (Pose::Affine(a), shape) => {
+            let r = pose.reach(shape.bound_radius());
+            let (cx, cy) = a.apply(0.0, 0.0);
+            r.is_finite().then_some([cx - r, cx + r, cy - r, cy + r])
+        }
+        (Pose::Projective(h), Shape::Polygon { vertices }) => {
+            let mut b = [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ];
+            for &(u, v) in vertices {
+                let (x, y) = h.apply(u, v)?;
+                b = [b[0].min(x), b[1].max(x), b[2].min(y), b[3].max(y)];
+            }
+            let pad = 1e-6;
+            b.iter().all(|v| v.is_finite()).then_some([
+                b[0] - pad,
+                b[1] + pad,
+                b[2] - pad,
+                b[3] + pad,
+            ])
+        }
+        _ => None,
     }
 }
 
