@@ -129,13 +129,20 @@ fn blocks(cfg: &ChairsConfig, ground: &Ground, o: &mut rng::Rng) -> Vec<Block> {
     placed
 }
 
+/// A face's texel size (metres), poses and corners (texels about its centre).
+struct Planned {
+    metres: f64,
+    poses: [Homography; 2],
+    vertices: Vec<(f64, f64)>,
+}
+
 /// A box's faces as layers in painting order, each with its own texture at about 1.5 texels
 /// per pixel where the face is nearest (at most FACE_TEXELS on a side); none when a corner
 /// would lie behind either frame's camera.
 fn faces(ground: &Ground, block: &Block, o: &mut rng::Rng, texture: &mut Texture) -> Vec<Layer> {
     let scaled = |e: [f64; 3], m: f64| e.map(|x| x * m);
     let faces = block.faces(ground);
-    let mut planned: Vec<(f64, [Homography; 2], Vec<(f64, f64)>)> = Vec::new();
+    let mut planned = Vec::with_capacity(faces.len());
     for face in &faces {
         let z_nearest = block.z[0];
         let metres =
@@ -156,34 +163,47 @@ fn faces(ground: &Ground, block: &Block, o: &mut rng::Rng, texture: &mut Texture
         {
             return Vec::new();
         }
-        planned.push((metres, poses, vertices));
+        planned.push(Planned {
+            metres,
+            poses,
+            vertices,
+        });
     }
     // Textures only for boxes that are drawn: each is recorded as the next layer's.
     faces
         .iter()
         .zip(planned)
-        .map(|(face, (metres, [p1, p2], vertices))| {
-            let (tw, th) = (
-                (2.0 * face.half[0] / metres).ceil().max(2.0),
-                (2.0 * face.half[1] / metres).ceil().max(2.0),
-            );
-            let tex_seed = o.random();
-            let tex = texture(
-                o,
-                false,
-                tex_seed,
-                th as usize,
-                tw as usize,
-                tw.max(th) as f32,
-            );
-            Layer {
-                shape: Shape::Polygon { vertices },
-                fill: Fill::Texture {
-                    image: Arc::new(tex),
-                    origin: (tw / 2.0, th / 2.0),
+        .map(
+            |(
+                face,
+                Planned {
+                    metres,
+                    poses: [p1, p2],
+                    vertices,
                 },
-                poses: [p1.into(), p2.into()],
-            }
-        })
+            )| {
+                let (tw, th) = (
+                    (2.0 * face.half[0] / metres).ceil().max(2.0),
+                    (2.0 * face.half[1] / metres).ceil().max(2.0),
+                );
+                let tex_seed = o.random();
+                let tex = texture(
+                    o,
+                    false,
+                    tex_seed,
+                    th as usize,
+                    tw as usize,
+                    tw.max(th) as f32,
+                );
+                Layer {
+                    shape: Shape::Polygon { vertices },
+                    fill: Fill::Texture {
+                        image: Arc::new(tex),
+                        origin: (tw / 2.0, th / 2.0),
+                    },
+                    poses: [p1.into(), p2.into()],
+                }
+            },
+        )
         .collect()
 }

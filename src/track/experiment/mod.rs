@@ -9,10 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use super::config::{Profile, TrackConfig, from_value_named};
 use super::detect::photometric::{GreyFrame, GreyPair};
-use super::detect::static_flow::BackgroundFlow;
-use super::eval::coverage::Coverage;
+use super::eval::evaluate;
 pub use super::eval::points::{OperatingPoint, PointRow, points_chart, points_table};
-use super::eval::{HorizonError, evaluate};
 use super::run::{FlowStep, TrackOptions, track_sequence};
 use super::tracker::tracks::Tracks;
 use crate::dataset::sequence::SequenceConfig;
@@ -252,52 +250,6 @@ impl ExperimentConfig {
     }
 }
 
-/// One row of the result: a clip, a predictor, one tracked object (or `all`), one horizon.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Row {
-    pub clip: String,
-    pub predictor: String,
-    /// The true object index, or null for the pooled row.
-    pub object: Option<usize>,
-    pub track_id: Option<usize>,
-    #[serde(flatten)]
-    pub error: HorizonError,
-    pub ms_per_frame: f64,
-    /// The operating point (MMS flow; absent for exact flow).
-    #[serde(default)]
-    pub point: Option<OperatingPoint>,
-}
-
-/// The whole result.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct ExperimentReport {
-    pub flow: FlowSource,
-    /// Flow estimation time per frame (estimated flow only).
-    pub flow_ms_per_frame: Option<f64>,
-    pub rows: Vec<Row>,
-    /// (clip, predictor) → ID switches.
-    pub id_switches: Vec<(String, String, usize)>,
-    /// (clip, predictor) → tracks that follow no object.
-    #[serde(default)]
-    pub spurious: Vec<(String, String, usize)>,
-    /// (clip, predictor) → second tracks: on an object another track follows (picked up
-    /// again under a new ID).
-    #[serde(default)]
-    pub second: Vec<(String, String, usize)>,
-    /// (clip, predictor) → true objects followed by no track.
-    #[serde(default)]
-    pub missed: Vec<(String, String, Vec<usize>)>,
-    /// (clip, predictor) → how much of the objects the tracks cover and IDF1.
-    #[serde(default)]
-    pub coverage: Vec<(String, String, Coverage)>,
-    /// Clip → background-flow magnitude of its flows.
-    #[serde(default)]
-    pub background_flow: Vec<(String, BackgroundFlow)>,
-    /// MMS flow: one row per clip, operating point and predictor.
-    #[serde(default)]
-    pub points: Vec<PointRow>,
-}
-
 /// A clip's flows and truth, computed once and shared by every predictor.
 pub struct ClipData {
     pub truth: Truth,
@@ -520,146 +472,8 @@ pub fn run(
     })
 }
 
-/// The report as a text table.
-pub fn table(r: &ExperimentReport) -> String {
-    let mut s = format!(
-        "{:<12} {:<22} {:>6} {:>7} {:>6} {:>9} {:>9} {:>9} {:>8}\n",
-        "clip",
-        "predictor",
-        "object",
-        "horizon",
-        "count",
-        "RMSE_X",
-        "RMSE_Y",
-        "RMSE_2D",
-        "ms/frame"
-    );
-    for row in &r.rows {
-        let obj = row.object.map_or("all".to_string(), |o| o.to_string());
-        s += &format!(
-            "{:<12} {:<22} {:>6} {:>7} {:>6} {:>9.2} {:>9.2} {:>9.2} {:>8.3}\n",
-            row.clip,
-            row.predictor,
-            obj,
-            row.error.horizon,
-            row.error.count,
-            row.error.rmse_x,
-            row.error.rmse_y,
-            row.error.rmse_2d,
-            row.ms_per_frame
-        );
-    }
-    for (c, p, n) in &r.id_switches {
-        if *n > 0 {
-            s += &format!("{c} / {p}: {n} ID switches\n");
-        }
-    }
-    for (c, p, n) in &r.spurious {
-        if *n > 0 {
-            s += &format!("{c} / {p}: {n} tracks follow no object\n");
-        }
-    }
-    for (c, p, n) in &r.second {
-        if *n > 0 {
-            s += &format!("{c} / {p}: {n} second tracks on an object another track follows\n");
-        }
-    }
-    for (c, p, m) in &r.missed {
-        if !m.is_empty() {
-            s += &format!("{c} / {p}: missed objects {m:?}\n");
-        }
-    }
-    for (c, p, v) in &r.coverage {
-        s += &format!(
-            "{c} / {p}: coverage {:.1} % (mostly tracked {}, partially {}, mostly lost {}), IDF1 {:.3}\n",
-            100.0 * v.recall,
-            v.mostly_tracked,
-            v.partially_tracked,
-            v.mostly_lost,
-            v.idf1
-        );
-    }
-    for (c, b) in &r.background_flow {
-        s += &format!(
-            "{c}: background flow mean {:.3} px, p99 {:.3} px\n",
-            b.mean, b.p99
-        );
-    }
-    if let Some(ms) = r.flow_ms_per_frame {
-        let name = if r.flow == FlowSource::Dis {
-            "DIS"
-        } else {
-            "MMS"
-        };
-        s += &format!("{name} flow: {ms:.0} ms per frame\n");
-    }
-    s
-}
+mod report;
+pub use report::{ExperimentReport, Row, table};
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const SCENE: &str = r#"{"scene": {"width": 64, "height": 48, "frames": 4, "seed": 7,
-        "objects": [{"path": "sinusoid", "radius": 6}]}}"#;
-
-    fn load(dir: &Path, clips: &str) -> Result<ExperimentConfig> {
-        std::fs::write(dir.join("clip.json"), SCENE).unwrap();
-        let path = dir.join("experiment.json");
-        std::fs::write(
-            &path,
-            format!(r#"{{"clips": {clips}, "predictors": [{{"name": "poly"}}], "horizons": [1]}}"#),
-        )
-        .unwrap();
-        ExperimentConfig::from_file(&path)
-    }
-
-    #[test]
-    fn clips_come_from_files_or_inline_once_per_seed() {
-        let dir = tempfile::tempdir().unwrap();
-        let cfg = load(
-            dir.path(),
-            &format!(
-                r#"[{{"name": "file", "config": "clip.json"}},
-                    {{"name": "seeded", "config": "clip.json", "seeds": [3, 4]}},
-                    {{"name": "inline", "clip": {SCENE}, "seeds": [9]}}]"#
-            ),
-        )
-        .unwrap();
-        let runs: Vec<(&str, u64)> = cfg
-            .clips
-            .iter()
-            .map(|c| (c.name.as_str(), c.loaded.scene.seed))
-            .collect();
-        assert_eq!(
-            runs,
-            [
-                ("file", 7),
-                ("seeded_seed3", 3),
-                ("seeded_seed4", 4),
-                ("inline_seed9", 9)
-            ]
-        );
-        // Apart from the seed, a seeded run is the clip itself.
-        let mut c = cfg.clips[1].loaded.clone();
-        c.scene.seed = 7;
-        assert_eq!(c, cfg.clips[0].loaded);
-    }
-
-    #[test]
-    fn clip_specs_that_say_too_little_or_repeat_are_refused() {
-        let dir = tempfile::tempdir().unwrap();
-        let err = |clips: &str| load(dir.path(), clips).unwrap_err().to_string();
-        assert!(err(r#"[{"name": "a"}]"#).contains("needs either"));
-        let both = format!(r#"[{{"name": "a", "config": "clip.json", "clip": {SCENE}}}]"#);
-        assert!(err(&both).contains("needs either"));
-        assert!(
-            err(r#"[{"name": "a", "config": "clip.json", "seeds": [1, 1]}]"#).contains("seed 1")
-        );
-        let twice =
-            r#"[{"name": "a", "config": "clip.json"}, {"name": "a", "config": "clip.json"}]"#;
-        assert!(err(twice).contains("two clips are named"));
-        let missing = err(r#"[{"name": "a", "config": "nowhere.json"}]"#);
-        assert!(missing.contains("nowhere.json"), "{missing}");
-    }
-}
+mod tests;
