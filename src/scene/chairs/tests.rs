@@ -210,6 +210,36 @@ fn bad_config_is_rejected() {
     assert!(serde_json::from_str::<ChairsConfig>(r#"{"sprite": [1, 2]}"#).is_err());
 }
 
+/// Brightness constancy of a 160×120 colour scene over `rows` × `cols`: the mean absolute
+/// difference between frame 1 and frame 2 sampled at x + flow, the same in place, and the
+/// samples counted (pixels whose x + flow stays inside the frame, times channels).
+fn constancy(
+    scene: &LayeredScene,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
+) -> (f64, f64, usize) {
+    let flow = scene.flow().unwrap();
+    let (f1, f2) = (scene.render(0).unwrap(), scene.render(1).unwrap());
+    let (mut moved, mut still, mut n) = (0.0, 0.0, 0);
+    for y in rows {
+        for x in cols.clone() {
+            let (u, v) = flow.get(y, x);
+            let (x2, y2) = (x as f32 + u, y as f32 + v);
+            if !(0.0..158.0).contains(&x2) || !(0.0..118.0).contains(&y2) {
+                continue;
+            }
+            for c in 0..3 {
+                let a = f1.get(c, y, x);
+                moved += (super::super::texture::sample_bilinear(&f2, c, x2, y2) - a).abs() as f64;
+                still += (f2.get(c, y, x) - a).abs() as f64;
+                n += 1;
+            }
+        }
+    }
+    let n_f = n.max(1) as f64;
+    (moved / n_f, still / n_f, n)
+}
+
 /// A ground plane under a camera driving ahead: below the patch's far edge the flow points
 /// down and grows row by row to the bottom, where it is (H − horizon)·a/(1 − a) at most;
 /// frame 2 at x + flow shows what frame 1 shows at x; the far world above does not move;
@@ -258,26 +288,8 @@ fn a_ground_plane_flows_down_and_out_and_its_frames_agree() {
             );
         }
         // Brightness constancy where the ground stays in the frame.
-        let (f1, f2) = (scene.render(0).unwrap(), scene.render(1).unwrap());
-        let (mut moved, mut still, mut n) = (0.0, 0.0, 0);
-        for y in 70..110 {
-            for x in 30..130 {
-                let (u, v) = flow.get(y, x);
-                let (x2, y2) = (x as f32 + u, y as f32 + v);
-                if !(0.0..158.0).contains(&x2) || !(0.0..118.0).contains(&y2) {
-                    continue;
-                }
-                for c in 0..3 {
-                    let a = f1.get(c, y, x);
-                    moved +=
-                        (super::super::texture::sample_bilinear(&f2, c, x2, y2) - a).abs() as f64;
-                    still += (f2.get(c, y, x) - a).abs() as f64;
-                    n += 1;
-                }
-            }
-        }
+        let (moved, still, n) = constancy(&scene, 70..110, 30..130);
         assert!(n > 3000, "{n}");
-        let (moved, still) = (moved / n as f64, still / n as f64);
         assert!(
             moved < 0.3 * still,
             "seed {seed}: {moved} along the flow, {still} in place"
@@ -341,25 +353,7 @@ fn boxes_on_the_road_keep_the_road_and_their_frames_agree() {
         assert_eq!(scene.records()[..2], plain.records()[..]);
         faces += scene.layers.len() - 2;
         // Brightness constancy below the horizon's band, where the boxes and the road are.
-        let flow = scene.flow().unwrap();
-        let (f1, f2) = (scene.render(0).unwrap(), scene.render(1).unwrap());
-        let (mut moved, mut still, mut n) = (0.0, 0.0, 0);
-        for y in 40..118 {
-            for x in 2..158 {
-                let (u, v) = flow.get(y, x);
-                let (x2, y2) = (x as f32 + u, y as f32 + v);
-                if !(0.0..158.0).contains(&x2) || !(0.0..118.0).contains(&y2) {
-                    continue;
-                }
-                for c in 0..3 {
-                    let a = f1.get(c, y, x);
-                    moved +=
-                        (super::super::texture::sample_bilinear(&f2, c, x2, y2) - a).abs() as f64;
-                    still += (f2.get(c, y, x) - a).abs() as f64;
-                    n += 1;
-                }
-            }
-        }
+        let (moved, still, n) = constancy(&scene, 40..118, 2..158);
         assert!(n > 3 * 5000, "{n}");
         assert!(
             moved < 0.25 * still,
