@@ -96,8 +96,9 @@ pub(super) fn draw(cfg: &ChairsConfig, seed: u64, texture: &mut Texture) -> Vec<
 }
 
 /// The boxes standing on the ground, farthest first: their count drawn from
-/// `ground_objects`, each on the patch (its front between the bottom row's depth, or beyond
-/// the camera's advance, and FAR_MIN times it), anywhere across the view at its depth, 0.3 to
+/// `ground_objects`, each on the patch (its front at least the bottom row's depth away, and
+/// 0.6 of it beyond where the camera advances to, at most FAR_MIN times it), anywhere across
+/// the view at its depth, 0.3 to
 /// 2.5 m wide, 0.3 to 8 m long and 0.3 to 3.5 m tall (posts, cars, vans, walls), no two
 /// closer than 0.2 m. A box the placement cannot fit is left out.
 fn blocks(cfg: &ChairsConfig, ground: &Ground, o: &mut rng::Rng) -> Vec<Block> {
