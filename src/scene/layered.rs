@@ -226,10 +226,11 @@ impl LayeredScene {
     }
 }
 
-/// Where layer's shape can show in frame `k`: for an affine pose, the square of its bound
+/// Where the layer's shape can show in frame `k`: for an affine pose, the square of its bound
 /// radius's reach about the origin's image; for a polygon wholly in front of a homography's
-/// camera (`check_in_front`), the box of its vertices' images (a homography keeps straight
-/// lines straight there), widened by 1e-6 px against rounding; else unbounded.
+/// camera (`check_in_front`), the box of its vertices' images (in front of the camera a
+/// homography keeps straight lines straight, so every edge's image lies between its ends'),
+/// widened by 1e-6 px against rounding; else unbounded.
 fn image_bounds(layer: &Layer, k: usize) -> Option<[f64; 4]> {
     let pose = &layer.poses[k];
     match (pose, &layer.shape) {
