@@ -3,7 +3,8 @@
 //! frames. It imports nothing from the later stages (`motion`, `tracker`, `eval`). Its files,
 //! in the order a frame goes through them:
 //!
-//! - `pipeline.rs`: `DetectConfig` and `detect`, one frame's detection from end to end.
+//! - `pipeline.rs`: `detect`, one frame's detection from end to end.
+//! - `detect_config.rs`: `DetectConfig`, the detector's settings and their checks.
 //! - `background.rs`: the background's global motion (affine or translation, IRLS with Huber).
 //! - `noise_floor.rs`: a frame's robust noise floor (median + k · 1.4826 MAD).
 //! - `roi.rs`: thresholded 8-connected regions, centroid, speed, circular mean direction.
@@ -23,6 +24,7 @@
 pub mod align;
 pub mod background;
 pub mod change;
+pub mod detect_config;
 pub mod foreground;
 pub mod grow;
 pub mod noise_floor;
@@ -37,4 +39,5 @@ pub mod static_flow;
 pub mod still_background;
 pub mod trim;
 
-pub use pipeline::{Candidate, DetectConfig, FrameDetection, detect};
+pub use detect_config::DetectConfig;
+pub use pipeline::{Candidate, FrameDetection, detect};

@@ -9,7 +9,8 @@
 //! - `associate.rs`: gated assignment of detections to tracks, merges, weak detections.
 //! - `consistency.rs`: the motion-consistency test of a tentative track.
 //! - `reid.rs`: re-identification of an ended or coasting track.
-//! - `multi.rs` (tests in `multi/tests.rs`): the tracker's frame step and track life.
+//! - `multi.rs` (tests in `multi/tests.rs`, `multi/tests/identity.rs`): the tracker's frame step
+//!   and track life; `multi/reidentify.rs`: an ID taken back at confirmation.
 //! - `tracks.rs`: its output, `tracks.json` (`Tracks`, `ObjectTrack`, `FrameRecord`).
 
 pub mod appearance;

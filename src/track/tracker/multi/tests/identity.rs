@@ -1,0 +1,166 @@
+//! The tracker's identity tests (DeepSORT's appearance cue and re-identification): an object
+//! hidden and seen again keeps its ID, and another object does not take it.
+
+use super::*;
+
+/// Object A (red) moves right and is missed for frames 20–23; object B (green) enters at
+/// frame 20 just beside A's predicted path, moving the same way. Without the appearance
+/// cue, A's coasting track takes B's first detection and follows B (an ID switch); with
+/// it, B starts its own track and A's ID waits for A.
+#[test]
+fn a_coasting_track_does_not_take_an_object_of_another_colour() {
+    let red = |n: usize| [200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
+    let green = |n: usize| [40.0, 190.0 + (n % 2) as f64, 60.0];
+    let run = |config: TrackerConfig| {
+        let mut tr = Tracker::new(config).unwrap();
+        // The ID nearest A and nearest B in each frame after B entered.
+        let mut on_a = Vec::new();
+        let mut on_b = Vec::new();
+        for n in 0..40 {
+            let (ax, bx) = (20.0 + 3.0 * n as f64, 20.0 + 3.0 * n as f64 + 6.0);
+            let mut dets = Vec::new();
+            if !(20..24).contains(&n) {
+                dets.push(Region {
+                    colour: Some(red(n)),
+                    ..det(ax, 50.0, 3.0, 0.0)
+                });
+            }
+            if n >= 20 {
+                dets.push(Region {
+                    colour: Some(green(n)),
+                    ..det(bx, 62.0, 3.0, 0.0)
+                });
+            }
+            let out = tr.step(n, &dets, 1).unwrap();
+            for t in &out {
+                let (x, y) = t.estimate.centroid;
+                if (x - ax).hypot(y - 50.0) < 4.0 {
+                    on_a.push((n, t.id));
+                }
+                if n >= 20 && (x - bx).hypot(y - 62.0) < 4.0 {
+                    on_b.push((n, t.id));
+                }
+            }
+        }
+        (on_a, on_b)
+    };
+    let (on_a, on_b) = run(TrackerConfig::default());
+    assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+    assert!(on_a.iter().any(|&(n, _)| n >= 30), "A taken back: {on_a:?}");
+    assert!(on_b.iter().all(|&(_, id)| id != 1), "B: {on_b:?}");
+    // Without the cue A's ID follows B.
+    let (_, on_b) = run(TrackerConfig {
+        appearance_k: f64::INFINITY,
+        appearance_px: 0.0,
+        ..TrackerConfig::default()
+    });
+    assert!(on_b.iter().any(|&(_, id)| id == 1), "B: {on_b:?}");
+}
+
+/// Per frame, the IDs reported on a red object A and on a green object B (within 4 px).
+type Seen = (Vec<(usize, usize)>, Vec<(usize, usize)>);
+
+/// A (red, 3 px/frame to the right) is seen in frames 0–19, hidden in 20–`back` − 1 and
+/// seen again from frame `back`, `jump` px below where it went and moving by `v` px/frame
+/// (it turned behind the occluder); B (green) enters at frame 60 far away. Returns the
+/// IDs seen on each.
+fn hide_and_return(config: TrackerConfig, back: usize, jump: f64, v: (f64, f64)) -> Seen {
+    let red = |n: usize| [200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
+    let green = |n: usize| [40.0, 190.0 + (n % 2) as f64, 60.0];
+    let mut tr = Tracker::new(config).unwrap();
+    let (mut on_a, mut on_b) = (Vec::new(), Vec::new());
+    for n in 0..back + 40 {
+        let a = if n < back {
+            (20.0 + 3.0 * n as f64, 50.0)
+        } else {
+            let k = (n - back) as f64;
+            (20.0 + 3.0 * back as f64 + v.0 * k, 50.0 + jump + v.1 * k)
+        };
+        let va = if n < back { (3.0, 0.0) } else { v };
+        let b = (300.0 - 2.0 * n as f64, 300.0);
+        let mut dets = Vec::new();
+        if n < 20 || n >= back {
+            dets.push(Region {
+                colour: Some(red(n)),
+                ..det(a.0, a.1, va.0, va.1)
+            });
+        }
+        if n >= 60 {
+            dets.push(Region {
+                colour: Some(green(n)),
+                ..det(b.0, b.1, -2.0, 0.0)
+            });
+        }
+        let out = tr.step(n, &dets, 1).unwrap();
+        let mut ids: Vec<usize> = out.iter().map(|t| t.id).collect();
+        ids.dedup();
+        assert_eq!(ids.len(), out.len(), "an ID reported twice in frame {n}");
+        for t in &out {
+            let (x, y) = t.estimate.centroid;
+            if (x - a.0).hypot(y - a.1) < 4.0 {
+                on_a.push((n, t.id));
+            }
+            if (x - b.0).hypot(y - b.1) < 4.0 {
+                on_b.push((n, t.id));
+            }
+        }
+    }
+    (on_a, on_b)
+}
+
+#[test]
+fn an_object_seen_again_takes_its_id_back_and_another_one_does_not() {
+    // Hidden for 40 frames, longer than the patience: the track ended, and its ID waits.
+    let (on_a, on_b) = hide_and_return(TrackerConfig::default(), 60, 20.0, (3.0, 0.0));
+    assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+    assert!(on_a.iter().any(|&(n, _)| n >= 70), "A seen again: {on_a:?}");
+    assert!(on_b.iter().all(|&(_, id)| id == 2), "B: {on_b:?}");
+    // Without re-identification A comes back as a new object.
+    let off = TrackerConfig {
+        reid_frames: 0,
+        ..TrackerConfig::default()
+    };
+    let (on_a, _) = hide_and_return(off, 60, 20.0, (3.0, 0.0));
+    assert!(
+        on_a.iter().any(|&(n, id)| n >= 70 && id != 1),
+        "A: {on_a:?}"
+    );
+    // Beyond the memory (150 frames), or farther than A could have gone, a new ID.
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 200, 20.0, (3.0, 0.0));
+    assert!(
+        on_a.iter().any(|&(n, id)| n >= 200 && id != 1),
+        "A: {on_a:?}"
+    );
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 30, 300.0, (3.0, 0.0));
+    assert!(
+        on_a.iter().any(|&(n, id)| n >= 40 && id != 1),
+        "A: {on_a:?}"
+    );
+}
+
+#[test]
+fn a_new_track_on_a_coasting_tracks_object_takes_its_id_and_it_ends() {
+    // Hidden for 6 frames, then 45 px below its path and moving down: too far for the
+    // second association and too different in motion for the gate of A's coasting track,
+    // so a new track starts on A and is confirmed while A's track still coasts.
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 26, 45.0, (0.0, 3.0));
+    assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+    assert!(on_a.iter().any(|&(n, _)| n >= 40), "A seen again: {on_a:?}");
+    let off = TrackerConfig {
+        reid_frames: 0,
+        ..TrackerConfig::default()
+    };
+    let (on_a, _) = hide_and_return(off, 26, 45.0, (0.0, 3.0));
+    assert!(on_a.iter().any(|&(_, id)| id != 1), "A: {on_a:?}");
+    // With coasting tracks reported, the old track's estimate goes when its ID is taken.
+    let (on_a, _) = hide_and_return(
+        TrackerConfig {
+            max_coast_reported: 15,
+            ..TrackerConfig::default()
+        },
+        26,
+        45.0,
+        (0.0, 3.0),
+    );
+    assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+}
