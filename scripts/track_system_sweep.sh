@@ -9,6 +9,8 @@
 #
 # PINS: a pins binary (built with `--features wgpu` for DEVICE=wgpu); DEVICE: cpu (default) or
 # a GPU backend of that build; WEIGHTS: the tracker's MMS weights (default: its own, mms-small);
+# CONFIG: a tracking config file (`pins track --config`, e.g. a profile and the tracker keys it
+# changes; default: none, the shipped defaults);
 # KINDS: the clip kinds to run (default: "sinusoid spiral random five"; each keeps its seed
 # offset, so `KINDS=sinusoid` runs the sinusoids of the full sweep); OUT: a folder for
 # summary.txt (`pins track eval`'s table per clip) and evals.jsonl (one line per clip:
@@ -24,6 +26,11 @@ for s in "$@"; do
 done
 DEVICE=${DEVICE:-cpu}
 WEIGHTS=${WEIGHTS:-}
+CONFIG=${CONFIG:+$(realpath "$CONFIG")}
+if [ -n "$CONFIG" ] && [ ! -f "$CONFIG" ]; then
+    echo "CONFIG: no such file: $CONFIG" >&2
+    exit 2
+fi
 KINDS=${KINDS:-sinusoid spiral random five}
 for kind in $KINDS; do
     case $kind in
@@ -70,7 +77,7 @@ track() {
     local n=$1
     while [ ! -e "$n.rendered" ] && [ ! -e "$n.failed" ]; do sleep 1; done
     if [ -e "$n.failed" ] ||
-        ! "$B" track --frames "$n/frames" --out "${n}_t" --iters 4 --no-plots --device "$DEVICE" ${WEIGHTS:+--weights "$WEIGHTS"} > "$n.track.log" 2>&1 ||
+        ! "$B" track --frames "$n/frames" --out "${n}_t" --iters 4 --no-plots --device "$DEVICE" ${WEIGHTS:+--weights "$WEIGHTS"} ${CONFIG:+--config "$CONFIG"} > "$n.track.log" 2>&1 ||
         ! "$B" track eval --tracks "${n}_t/tracks.json" --truth "$n/truth.json" --out "$n.eval.json" > "$n.eval.txt" 2>&1; then
         (flock 9; echo "## $n FAILED: $(tail -n 2 "$n".*.log | tr '\n' ' ')" >> "$O/summary.txt") 9> lock
         rm -rf "$n"
@@ -85,7 +92,7 @@ track() {
     rm -rf "$n"
 }
 export -f track
-export B O t0 DEVICE WEIGHTS
+export B O t0 DEVICE WEIGHTS CONFIG
 xargs -P "$JOBS" -I{} bash -c 'track {}' < list.txt
 wait
 echo "# done [$(($(date +%s) - t0)) s]" >> "$O/summary.txt"
