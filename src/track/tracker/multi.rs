@@ -68,6 +68,9 @@ struct Track {
     /// one where the still background placed it), its mean flow and the motion the frames
     /// confirm (the aligned one, the mean flow where the alignment did not run).
     window: VecDeque<Hit>,
+    /// The last hit's motions per stream frame (its mean flow, the motion the frames
+    /// confirm): a tentative track's window bridges a miss with them.
+    last_motion: ((f64, f64), (f64, f64)),
     hits: usize,
     misses: usize,
     confirmed: bool,
@@ -287,12 +290,22 @@ impl Tracker {
                 t.misses = 0;
                 if !t.confirmed {
                     t.window.push_back(hit(d, step.span));
+                    t.last_motion = per_frame(d);
                     while t.window.len() > confirm {
                         t.window.pop_front();
                     }
                 }
             } else if !in_merge {
                 t.misses += 1;
+                if !t.confirmed {
+                    // The centre at the next hit lies one more step on: the last hit's motion
+                    // stands in for the motion of the frame missed.
+                    let ((fu, fv), (au, av)) = t.last_motion;
+                    if let Some(last) = t.window.back_mut() {
+                        last.1 = (last.1.0 + fu * step.span, last.1.1 + fv * step.span);
+                        last.2 = (last.2.0 + au * step.span, last.2.1 + av * step.span);
+                    }
+                }
             }
             if !t.confirmed && t.hits >= confirm {
                 let beside = occupied
@@ -396,7 +409,7 @@ impl Tracker {
                 slots.contains(&(n - 1)) || !taken_over.contains(&e.id)
             });
         }
-        let patience = self.config.patience;
+        let (patience, tentative_patience) = (self.config.patience, self.config.tentative_patience);
         let ended = self
             .tracks
             .iter()
@@ -415,7 +428,7 @@ impl Tracker {
         self.lost
             .retain(|l| keep > 0 && frame.saturating_sub(l.last_seen.0) <= keep);
         self.tracks
-            .retain(|t| t.misses <= patience && (t.confirmed || t.misses == 0));
+            .retain(|t| t.misses <= patience && (t.confirmed || t.misses <= tentative_patience));
         for (j, d) in detections.iter().enumerate() {
             // A weak detection (`track::detect::retry`) continues a track, never starts one.
             if used[j] || d.weak {
@@ -442,6 +455,7 @@ impl Tracker {
                 key: self.next_key,
                 mtp,
                 window: VecDeque::from([hit(d, step.span)]),
+                last_motion: per_frame(d),
                 hits: 1,
                 misses: 0,
                 confirmed: false,
@@ -480,12 +494,17 @@ impl Tracker {
 /// A detection's hit for the consistency test, its motions taken over `span` stream frames (to
 /// the next processed frame), where the test's centre will be.
 fn hit(d: &Region, span: f64) -> Hit {
-    let over = |m: (f64, f64)| (m.0 * span, m.1 * span);
+    let ((fu, fv), (au, av)) = per_frame(d);
     (
         d.placed.unwrap_or(d.centroid),
-        over(d.mean_flow),
-        over(d.aligned.unwrap_or(d.mean_flow)),
+        (fu * span, fv * span),
+        (au * span, av * span),
     )
+}
+
+/// A detection's motions per stream frame: its mean flow and the motion the frames confirm.
+fn per_frame(d: &Region) -> ((f64, f64), (f64, f64)) {
+    (d.mean_flow, d.aligned.unwrap_or(d.mean_flow))
 }
 
 mod reidentify;

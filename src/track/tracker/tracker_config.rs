@@ -20,6 +20,11 @@ pub struct TrackerConfig {
     pub confirm: usize,
     /// Misses before a track ends.
     pub patience: usize,
+    /// Misses a tentative track survives (k of n confirmation): it coasts on its prediction
+    /// and is confirmed after `confirm` hits with at most this many misses in a row between
+    /// them, its consistency window bridging each gap with its last hit's motion. 0: the
+    /// hits must be consecutive (SORT's and DeepSORT's rule).
+    pub tentative_patience: usize,
     /// Motion consistency over the confirmation window: the centre's displacement from the
     /// first to the last hit must match the sum of the regions' motions (the aligned motion
     /// where the frames confirmed it, the mean flow otherwise; the centre the placed one where
@@ -102,6 +107,7 @@ impl Default for TrackerConfig {
             gate_px: 40.0,
             confirm: 5,
             patience: 15,
+            tentative_patience: 0,
             consistency_px: 2.0,
             consistency_rel: 0.3,
             consistency_max_ratio: 1.0,
@@ -136,6 +142,15 @@ impl TrackerConfig {
         }
         if self.confirm == 0 {
             return Err(Error::invalid("tracker.confirm", "must be >= 1, got 0"));
+        }
+        if self.tentative_patience > self.patience {
+            return Err(Error::invalid(
+                "tracker.tentative_patience",
+                format!(
+                    "must be <= tracker.patience ({}), got {}",
+                    self.patience, self.tentative_patience
+                ),
+            ));
         }
         if !(0.0..1.0).contains(&self.partial_area_ratio) {
             return Err(Error::invalid(

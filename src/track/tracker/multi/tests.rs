@@ -399,3 +399,47 @@ fn weak_detections_carry_a_tentative_track_to_its_confirmation() {
     assert!(reported >= 24, "reported on {reported} frames");
     assert_eq!(run(false), (0, 0));
 }
+
+/// A mover detected on two frames of three (the photometric test rejecting the third, as on a
+/// small disc at 320×240): with consecutive hits required no tentative track lives to its
+/// fifth hit; with one miss allowed in a row it is confirmed, its window bridging each gap
+/// with its last motion, and keeps one ID. A blob that stays put while its flow says
+/// 3 px/frame, detected as intermittently, is still never confirmed.
+#[test]
+fn a_mover_missed_every_third_frame_is_confirmed_with_tentative_patience() {
+    let mover = |n: usize| det(20.0 + 3.0 * n as f64, 40.0, 3.0, 0.0);
+    let blob = |_: usize| det(150.0, 90.0, 3.0, 0.0);
+    let run = |tentative_patience: usize, object: &dyn Fn(usize) -> Region| {
+        let config = TrackerConfig {
+            tentative_patience,
+            ..TrackerConfig::default()
+        };
+        let mut tr = Tracker::new(config).unwrap();
+        let mut reported = Vec::new();
+        for n in 0..40 {
+            let seen: Vec<Region> = (n % 3 != 2).then(|| object(n)).into_iter().collect();
+            for t in tr.step(n, &seen, 1).unwrap() {
+                reported.push((n, t.id, t.estimate.centroid));
+            }
+        }
+        reported
+    };
+    assert!(run(0, &mover).is_empty());
+    let on = run(1, &mover);
+    let first = on.first().map(|r| r.0);
+    assert!(first.is_some_and(|f| f <= 8), "{on:?}");
+    assert!(on.iter().all(|r| r.1 == on[0].1), "{on:?}");
+    for &(n, _, (x, y)) in &on {
+        assert!(
+            (x - (20.0 + 3.0 * n as f64)).abs() < 2.0 && (y - 40.0).abs() < 1.0,
+            "{on:?}"
+        );
+    }
+    assert!(run(1, &blob).is_empty());
+    assert!(run(2, &blob).is_empty());
+    let bad = TrackerConfig {
+        tentative_patience: 16,
+        ..TrackerConfig::default()
+    };
+    assert!(Tracker::new(bad).is_err_and(|e| e.to_string().contains("tentative_patience")));
+}
