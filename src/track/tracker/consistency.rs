@@ -7,10 +7,31 @@
 
 use std::collections::VecDeque;
 
+use crate::track::detect::roi::Region;
+
 /// One hit of a tentative track: the region's centre, its mean flow and the motion the frames
 /// confirm (the aligned motion where the alignment ran, the mean flow otherwise), px to the
 /// next processed frame.
 pub type Hit = ((f64, f64), (f64, f64), (f64, f64));
+
+/// A tentative track's hit on `d`: the object's centre and motion as the frames measure them
+/// (the placed centre, the aligned motion), besides the flow's mean: a flow that gives a small
+/// mover a third of its motion would otherwise hold it back for as long as it is seen.
+/// A detection's hit for the consistency test, its motions taken over `span` stream frames (to
+/// the next processed frame), where the test's centre will be.
+pub fn hit(d: &Region, span: f64) -> Hit {
+    let ((fu, fv), (au, av)) = per_frame(d);
+    (
+        d.placed.unwrap_or(d.centroid),
+        (fu * span, fv * span),
+        (au * span, av * span),
+    )
+}
+
+/// A detection's motions per stream frame: its mean flow and the motion the frames confirm.
+pub fn per_frame(d: &Region) -> ((f64, f64), (f64, f64)) {
+    (d.mean_flow, d.aligned.unwrap_or(d.mean_flow))
+}
 
 /// The motion-consistency test of a tentative track (see `TrackerConfig`).
 pub struct Consistency {

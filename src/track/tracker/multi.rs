@@ -56,7 +56,7 @@ fn median(values: &VecDeque<usize>) -> Option<f64> {
     robust::upper_median(&mut v).map(|m| m as f64)
 }
 
-use super::consistency::{Consistency, Hit};
+use super::consistency::{Consistency, Hit, hit, per_frame};
 
 struct Track {
     /// The reported ID (0 until confirmed).
@@ -486,25 +486,6 @@ impl Tracker {
         out.sort_by_key(|t| t.id);
         Ok(out)
     }
-}
-
-/// A tentative track's hit on `d`: the object's centre and motion as the frames measure them
-/// (the placed centre, the aligned motion), besides the flow's mean: a flow that gives a small
-/// mover a third of its motion would otherwise hold it back for as long as it is seen.
-/// A detection's hit for the consistency test, its motions taken over `span` stream frames (to
-/// the next processed frame), where the test's centre will be.
-fn hit(d: &Region, span: f64) -> Hit {
-    let ((fu, fv), (au, av)) = per_frame(d);
-    (
-        d.placed.unwrap_or(d.centroid),
-        (fu * span, fv * span),
-        (au * span, av * span),
-    )
-}
-
-/// A detection's motions per stream frame: its mean flow and the motion the frames confirm.
-fn per_frame(d: &Region) -> ((f64, f64), (f64, f64)) {
-    (d.mean_flow, d.aligned.unwrap_or(d.mean_flow))
 }
 
 mod reidentify;
