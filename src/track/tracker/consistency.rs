@@ -14,11 +14,10 @@ use crate::track::detect::roi::Region;
 /// next processed frame.
 pub type Hit = ((f64, f64), (f64, f64), (f64, f64));
 
-/// A tentative track's hit on `d`: the object's centre and motion as the frames measure them
-/// (the placed centre, the aligned motion), besides the flow's mean: a flow that gives a small
-/// mover a third of its motion would otherwise hold it back for as long as it is seen.
-/// A detection's hit for the consistency test, its motions taken over `span` stream frames (to
-/// the next processed frame), where the test's centre will be.
+/// A tentative track's hit on `d` for the consistency test: the object's centre and motion as
+/// the frames measure them (the placed centre, the aligned motion) besides the flow's mean (a
+/// flow that gives a small mover a third of its motion would otherwise hold it back for as long
+/// as it is seen), the motions taken over `span` stream frames, to the next processed frame.
 pub fn hit(d: &Region, span: f64) -> Hit {
     let ((fu, fv), (au, av)) = per_frame(d);
     (
