@@ -28,8 +28,10 @@
 #                                                  --branch-from --cooldown): the learning rate
 #                                                  taken to zero over STEPS from where the run
 #                                                  stands, into $WORK/cooldown-STEP (STEP: the
-#                                                  run's step; a rerun resumes it); the run
-#                                                  itself goes on later from its own checkpoint
+#                                                  run's step; a rerun resumes it), on the
+#                                                  campaign's cooldown.json where it has one
+#                                                  (else its stream.json); the run itself goes
+#                                                  on later from its own checkpoint
 #   scripts/train_campaign.sh status               where the campaign stands
 #   scripts/train_campaign.sh average [N]          the mean of the campaign's last N snapshots
 #                                                  (default 5; stochastic weight averaging): the
@@ -62,6 +64,10 @@ WORK=${WORK:-out/campaign}
 RUN=$WORK/run
 CONFIG=$CAMPAIGN/train.json
 STREAM=$CAMPAIGN/stream.json
+# The mix a cool-down anneals on (warmup–stable–decay's decay phase on data of its own), where
+# the campaign has one; else the run's stream.
+COOL_STREAM=$CAMPAIGN/cooldown.json
+[ -f "$COOL_STREAM" ] || COOL_STREAM=$STREAM
 WEIGHTS=$CAMPAIGN/weights.safetensors
 START=datasets/weights/mms-small-real.safetensors
 
@@ -176,7 +182,7 @@ PY
     elif [ "$steps" -ge 1 ]; then
         branch="$WORK/cooldown-$at"
         echo "cooling down: --branch-from $RUN → $branch over $steps steps ${*}"
-        ${NICE:-} "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
+        ${NICE:-} "$PINS" train --quiet --config "$CONFIG" --data "$COOL_STREAM" --out "$branch" \
             --branch-from "$RUN" --cooldown "$steps" "$@" --time-budget "${left}s"
         cooled=$branch
         done_at=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["step"])' "$branch/checkpoint/state.json")
@@ -260,7 +266,7 @@ if [ "$mode" = cooldown ]; then
         from=(--branch-from "$RUN")
     fi
     echo "cooling down: ${from[*]} → $branch over $steps steps"
-    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$STREAM" --out "$branch" \
+    nice -n 19 "$PINS" train --quiet --config "$CONFIG" --data "$COOL_STREAM" --out "$branch" \
         "${from[@]}" --cooldown "$steps" --time-budget "${2:-2h}"
     echo "cool-down weights: $branch/last.safetensors"
     exit 0

@@ -91,3 +91,24 @@ fn every_experiment_file_is_named_in_the_readme() {
         "experiments/README.md names none of: {unnamed:?}"
     );
 }
+
+/// The campaign's streams open (every generator config and photograph they name), and its
+/// cool-down mix draws on the run's own sources, only weighted otherwise.
+#[test]
+fn the_campaign_streams_open_and_the_cool_down_mix_keeps_the_sources() {
+    use pins::flow::train::stream::{Stream, StreamConfig};
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/campaign");
+    let sources = |name: &str| {
+        let p = dir.join(name);
+        Stream::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        let cfg: StreamConfig = pins::io::read_json(&p).unwrap();
+        let mut files: Vec<std::path::PathBuf> =
+            cfg.sources.into_iter().map(|s| s.generator).collect();
+        files.sort();
+        files
+    };
+    let run = sources("stream.json");
+    if dir.join("cooldown.json").is_file() {
+        assert_eq!(sources("cooldown.json"), run);
+    }
+}

@@ -481,6 +481,24 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
         !ok_ && text.contains("STEPS must be a positive integer"),
         "{text}"
     );
+    // A campaign with a cooldown.json anneals on that mix; the run keeps its stream.
+    let mix = c.join("cooldown.json");
+    fs::write(
+        &mix,
+        r#"{"sources": [{"generator": "data/a.json", "weight": 1},
+                        {"generator": "data/b.json", "weight": 4}]}"#,
+    )
+    .unwrap();
+    fs::remove_dir_all(work2.join("cooldown-3")).unwrap();
+    let (ok_, text) = campaign(&["cooldown", "2"], &env2, &[]);
+    assert!(ok_ && text.contains("anneals on"), "{text}");
+    let branch: serde_json::Value = serde_json::from_str(
+        &fs::read_to_string(work2.join("cooldown-3/checkpoint/state.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(branch["data"], s(&mix), "{text}");
+    assert_eq!(branch["step"], 5, "{text}");
+    fs::remove_file(&mix).unwrap();
     // Its weights committed, its checkpoint lost: a warm restart from the weights.
     let weights = c.join("weights.safetensors");
     fs::copy(work.join("run/last.safetensors"), &weights).unwrap();

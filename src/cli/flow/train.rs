@@ -61,7 +61,8 @@ pub(crate) struct TrainArgs {
     branch_from: Option<PathBuf>,
     /// Cool down: take the learning rate to zero over this many steps (1 − √t of the
     /// schedule's rate) from where the run stands, and end there. With --branch-from (the run
-    /// goes on elsewhere: a warmup–stable–decay campaign) or --resume (this run ends).
+    /// goes on elsewhere: a warmup–stable–decay campaign; the branch may anneal on other
+    /// --data, which its checkpoint then keeps) or --resume (this run ends).
     #[arg(long, conflicts_with_all = ["init", "continue_from"])]
     cooldown: Option<usize>,
     /// No progress bar.
@@ -150,6 +151,9 @@ pub(crate) fn train(a: TrainArgs) -> Result<()> {
         progress: !a.quiet && std::io::stderr().is_terminal(),
     };
     let s = pins::flow::train::train(config, &opts)?;
+    if let Some(note) = &s.other_data {
+        println!("{}: {note}", a.out.display());
+    }
     if s.already_complete {
         println!(
             "{}: the run is already complete ({} of {} steps); nothing to do",

@@ -66,4 +66,6 @@ pub struct TrainSummary {
     pub pairs_seen: u64,
     /// Why the session ended before the run's last step and `--stop-after`, if it did.
     pub stopped: Option<StopReason>,
+    /// A new cool-down branch that anneals on data other than its run's: which (a line).
+    pub other_data: Option<String>,
 }

@@ -3,7 +3,7 @@
 //! schedule — and its data, whose fingerprint must be the checkpoint's; a run that has taken
 //! all its steps is reported as complete. A branch (`--branch-from`) starts a new folder from
 //! another run's checkpoint, as a resume would; a cool-down ([`super::cooldown`]) is fixed when
-//! it starts and kept by every resume after.
+//! it starts and kept by every resume after, and a new one may anneal on other data.
 
 use super::checkpoint::{self, CheckpointState, Loaded};
 use super::config::TrainConfig;
@@ -139,25 +139,38 @@ pub fn cooldown(
     }
 }
 
-/// Refuses to resume on data other than the run's (when the checkpoint recorded its
-/// fingerprint).
-pub fn refuse_other_data(
+/// The data a session trains on, against the run's (when the checkpoint recorded its
+/// fingerprint): a resume must train on the run's data. A new cool-down branch
+/// (`--branch-from` with `--cooldown`) may anneal on other data, as warmup–stable–decay
+/// schedules end on a mix of their own: the branch's checkpoint and weights then record the
+/// data it cooled down on, and the line returned says which it left.
+pub fn check_data(
     state: &CheckpointState,
     fingerprint: &DataFingerprint,
     opts: &TrainOptions,
-) -> Result<()> {
+) -> Result<Option<String>> {
     let Some(stored) = &state.data_fingerprint else {
-        return Ok(());
+        return Ok(None);
     };
     if stored == fingerprint {
-        return Ok(());
+        return Ok(None);
+    }
+    let new_cooldown = opts.branch_from.is_some() && opts.cooldown.is_some();
+    if new_cooldown && state.cooldown.is_none() {
+        return Ok(Some(format!(
+            "the cool-down anneals on {} ({}), not on the run's {} ({})",
+            opts.data.display(),
+            fingerprint.describe(),
+            state.data.display(),
+            stored.describe(),
+        )));
     }
     Err(Error::invalid(
         "--data",
         format!(
             "the run in {} was trained on {} ({}), but {} holds {}: resuming on other \
              data would silently change the run; start a new run (--init with its weights to \
-             fine-tune)",
+             fine-tune), or cool a branch down on it (--branch-from with --cooldown)",
             opts.branch_from.as_ref().unwrap_or(&opts.out).display(),
             state.data.display(),
             stored.describe(),
@@ -178,6 +191,7 @@ pub fn already_complete(state: &CheckpointState, model_config: &MmsConfig) -> Tr
         already_complete: true,
         pairs_seen: (state.step * state.config.batch_size) as u64,
         stopped: None,
+        other_data: None,
     }
 }
 

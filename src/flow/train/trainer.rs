@@ -50,8 +50,9 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
     if let Some(w) = warm {
         start = w.step;
     }
+    let mut other_data = None;
     if let Some((state, _, _)) = &existing {
-        resume::refuse_other_data(state, &fingerprint, opts)?;
+        other_data = resume::check_data(state, &fingerprint, opts)?;
         if start >= end {
             return Ok(resume::already_complete(state, &model_config));
         }
@@ -185,6 +186,7 @@ pub fn train(config: Option<TrainConfig>, opts: &TrainOptions) -> Result<TrainSu
         already_complete: false,
         pairs_seen: (step * config.batch_size) as u64,
         stopped,
+        other_data,
     })
 }
 
