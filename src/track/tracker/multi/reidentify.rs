@@ -14,7 +14,11 @@ impl Tracker {
             return None;
         }
         let t = &self.tracks[i];
-        let colour = t.appearance.as_ref().filter(|a| a.is_mature())?.mean();
+        // The new track's mean colour is the query, however few colours it has: the distance
+        // is measured in the old track's spread, which needs its own (`reid_distance`). A track
+        // confirmed on a partial region has had only four whole ones (seen on a spiral lost for
+        // 17 frames and found again with a new ID).
+        let colour = t.appearance.as_ref()?.mean();
         let born = t.born;
         let config = &self.config;
         let (gate, floor, k) = (config.gate_px, config.appearance_floor, config.reid_k);

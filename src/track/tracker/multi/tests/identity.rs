@@ -62,9 +62,15 @@ type Seen = (Vec<(usize, usize)>, Vec<(usize, usize)>);
 
 /// A (red, 3 px/frame to the right) is seen in frames 0–19, hidden in 20–`back` − 1 and
 /// seen again from frame `back`, `jump` px below where it went and moving by `v` px/frame
-/// (it turned behind the occluder); B (green) enters at frame 60 far away. Returns the
-/// IDs seen on each.
-fn hide_and_return(config: TrackerConfig, back: usize, jump: f64, v: (f64, f64)) -> Seen {
+/// (it turned behind the occluder), its colour unmeasured in the first `blind` frames
+/// back; B (green) enters at frame 60 far away. Returns the IDs seen on each.
+fn hide_and_return(
+    config: TrackerConfig,
+    back: usize,
+    jump: f64,
+    v: (f64, f64),
+    blind: usize,
+) -> Seen {
     let red = |n: usize| [200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
     let green = |n: usize| [40.0, 190.0 + (n % 2) as f64, 60.0];
     let mut tr = Tracker::new(config).unwrap();
@@ -81,7 +87,7 @@ fn hide_and_return(config: TrackerConfig, back: usize, jump: f64, v: (f64, f64))
         let mut dets = Vec::new();
         if n < 20 || n >= back {
             dets.push(Region {
-                colour: Some(red(n)),
+                colour: (n < back || n >= back + blind).then(|| red(n)),
                 ..det(a.0, a.1, va.0, va.1)
             });
         }
@@ -111,7 +117,7 @@ fn hide_and_return(config: TrackerConfig, back: usize, jump: f64, v: (f64, f64))
 #[test]
 fn an_object_seen_again_takes_its_id_back_and_another_one_does_not() {
     // Hidden for 40 frames, longer than the patience: the track ended, and its ID waits.
-    let (on_a, on_b) = hide_and_return(TrackerConfig::default(), 60, 20.0, (3.0, 0.0));
+    let (on_a, on_b) = hide_and_return(TrackerConfig::default(), 60, 20.0, (3.0, 0.0), 0);
     assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
     assert!(on_a.iter().any(|&(n, _)| n >= 70), "A seen again: {on_a:?}");
     assert!(on_b.iter().all(|&(_, id)| id == 2), "B: {on_b:?}");
@@ -120,18 +126,18 @@ fn an_object_seen_again_takes_its_id_back_and_another_one_does_not() {
         reid_frames: 0,
         ..TrackerConfig::default()
     };
-    let (on_a, _) = hide_and_return(off, 60, 20.0, (3.0, 0.0));
+    let (on_a, _) = hide_and_return(off, 60, 20.0, (3.0, 0.0), 0);
     assert!(
         on_a.iter().any(|&(n, id)| n >= 70 && id != 1),
         "A: {on_a:?}"
     );
     // Beyond the memory (150 frames), or farther than A could have gone, a new ID.
-    let (on_a, _) = hide_and_return(TrackerConfig::default(), 200, 20.0, (3.0, 0.0));
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 200, 20.0, (3.0, 0.0), 0);
     assert!(
         on_a.iter().any(|&(n, id)| n >= 200 && id != 1),
         "A: {on_a:?}"
     );
-    let (on_a, _) = hide_and_return(TrackerConfig::default(), 30, 300.0, (3.0, 0.0));
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 30, 300.0, (3.0, 0.0), 0);
     assert!(
         on_a.iter().any(|&(n, id)| n >= 40 && id != 1),
         "A: {on_a:?}"
@@ -143,14 +149,14 @@ fn a_new_track_on_a_coasting_tracks_object_takes_its_id_and_it_ends() {
     // Hidden for 6 frames, then 45 px below its path and moving down: too far for the
     // second association and too different in motion for the gate of A's coasting track,
     // so a new track starts on A and is confirmed while A's track still coasts.
-    let (on_a, _) = hide_and_return(TrackerConfig::default(), 26, 45.0, (0.0, 3.0));
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 26, 45.0, (0.0, 3.0), 0);
     assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
     assert!(on_a.iter().any(|&(n, _)| n >= 40), "A seen again: {on_a:?}");
     let off = TrackerConfig {
         reid_frames: 0,
         ..TrackerConfig::default()
     };
-    let (on_a, _) = hide_and_return(off, 26, 45.0, (0.0, 3.0));
+    let (on_a, _) = hide_and_return(off, 26, 45.0, (0.0, 3.0), 0);
     assert!(on_a.iter().any(|&(_, id)| id != 1), "A: {on_a:?}");
     // With coasting tracks reported, the old track's estimate goes when its ID is taken.
     let (on_a, _) = hide_and_return(
@@ -161,6 +167,23 @@ fn a_new_track_on_a_coasting_tracks_object_takes_its_id_and_it_ends() {
         26,
         45.0,
         (0.0, 3.0),
+        0,
     );
     assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+}
+
+#[test]
+fn a_track_confirmed_with_few_colours_still_takes_its_id_back() {
+    // Back after 40 frames with its colour unmeasured in its first two frames (regions too
+    // small or partial for a colour): confirmed on five hits with three colours, it is
+    // still compared with the ended track, whose own colours are many.
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 60, 20.0, (3.0, 0.0), 2);
+    assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
+    assert!(on_a.iter().any(|&(n, _)| n >= 70), "A seen again: {on_a:?}");
+    // With no colour at all it cannot be compared: a new ID.
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 60, 20.0, (3.0, 0.0), 40);
+    assert!(
+        on_a.iter().any(|&(n, id)| n >= 70 && id != 1),
+        "A: {on_a:?}"
+    );
 }
