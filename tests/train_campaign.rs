@@ -5,7 +5,7 @@
 //! bad input is named.
 
 mod common;
-use common::{failed, log_column, ok, pins, pins_with_threads};
+use common::{failed, log_column, ok, pins, train};
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -26,29 +26,6 @@ fn config(dir: &Path, steps: usize, batch: usize) -> PathBuf {
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-/// `pins train --config CFG --data DATA --out OUT --quiet EXTRA…`, with `threads` rayon threads
-/// when given.
-fn train(
-    cfg: &Path,
-    data: &Path,
-    out: &Path,
-    extra: &[&str],
-    threads: Option<usize>,
-) -> std::process::Output {
-    let mut args = vec![
-        "train",
-        "--config",
-        s(cfg),
-        "--data",
-        s(data),
-        "--out",
-        s(out),
-        "--quiet",
-    ];
-    args.extend_from_slice(extra);
-    pins_with_threads(&args, threads)
 }
 
 fn state_step(run: &Path) -> u64 {

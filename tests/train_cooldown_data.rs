@@ -4,28 +4,13 @@
 //! down and a cool-down of a cool-down are refused on other data, leaving nothing behind.
 
 mod common;
-use common::{failed, ok, pins};
+use common::{failed, ok, train};
 
 use std::fs;
 use std::path::Path;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn train(cfg: &Path, data: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
-    let mut args = vec![
-        "train",
-        "--config",
-        s(cfg),
-        "--data",
-        s(data),
-        "--out",
-        s(out),
-        "--quiet",
-    ];
-    args.extend_from_slice(extra);
-    pins(&args)
 }
 
 fn state(run: &Path) -> serde_json::Value {
@@ -46,17 +31,23 @@ fn a_cool_down_anneals_on_other_data_and_a_resume_does_not() {
     )
     .unwrap();
     let trunk = tmp.path().join("trunk");
-    ok(&train(&cfg, &data, &trunk, &["--stop-after", "3"]));
+    ok(&train(&cfg, &data, &trunk, &["--stop-after", "3"], None));
     let trunk_state = fs::read(trunk.join("checkpoint/state.json")).unwrap();
 
     // Refused on other data: the run's own resume, a branch that does not cool down.
-    let err = failed(&train(&cfg, &other, &trunk, &["--resume"]));
+    let err = failed(&train(&cfg, &other, &trunk, &["--resume"], None));
     assert!(
         err.contains("--data") && err.contains("5 pairs") && err.contains("--cooldown"),
         "{err}"
     );
     let fork = tmp.path().join("fork");
-    let err = failed(&train(&cfg, &other, &fork, &["--branch-from", s(&trunk)]));
+    let err = failed(&train(
+        &cfg,
+        &other,
+        &fork,
+        &["--branch-from", s(&trunk)],
+        None,
+    ));
     assert!(err.contains("--data"), "{err}");
     assert!(!fork.exists(), "a refused branch leaves no folder");
     assert_eq!(
@@ -74,7 +65,7 @@ fn a_cool_down_anneals_on_other_data_and_a_resume_does_not() {
         "--stop-after",
         "2",
     ];
-    let out = ok(&train(&cfg, &other, &branch, &cool));
+    let out = ok(&train(&cfg, &other, &branch, &cool, None));
     assert!(
         out.contains("anneals on") && out.contains("5 pairs") && out.contains("4 pairs"),
         "{out}"
@@ -89,9 +80,9 @@ fn a_cool_down_anneals_on_other_data_and_a_resume_does_not() {
             .expect("a training stamp");
     assert_eq!(stamp.data.pairs, 5);
     // Its resumes hold to the data it cools down on, and it ends where it was set to end.
-    let err = failed(&train(&cfg, &data, &branch, &["--resume"]));
+    let err = failed(&train(&cfg, &data, &branch, &["--resume"], None));
     assert!(err.contains("--data") && err.contains("4 pairs"), "{err}");
-    let out = ok(&train(&cfg, &other, &branch, &["--resume"]));
+    let out = ok(&train(&cfg, &other, &branch, &["--resume"], None));
     assert!(
         !out.contains("anneals on"),
         "a resume changes no data: {out}"
@@ -108,6 +99,7 @@ fn a_cool_down_anneals_on_other_data_and_a_resume_does_not() {
         &data,
         &again,
         &["--branch-from", s(&branch), "--cooldown", "4"],
+        None,
     ));
     assert!(err.contains("--data") && err.contains("5 pairs"), "{err}");
     assert!(!again.exists(), "a refused branch leaves no folder");

@@ -158,3 +158,21 @@ pub fn shared_data() -> Option<std::path::PathBuf> {
         None
     }
 }
+
+/// `pins train --config CFG --data DATA --out OUT --quiet EXTRA…`, with `threads` rayon threads
+/// when given.
+pub fn train(
+    cfg: &std::path::Path,
+    data: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+    threads: Option<usize>,
+) -> Output {
+    let path = |p: &std::path::Path| p.to_str().expect("a UTF-8 path").to_string();
+    let (cfg, data, out) = (path(cfg), path(data), path(out));
+    let mut args = vec![
+        "train", "--config", &cfg, "--data", &data, "--out", &out, "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    pins_with_threads(&args, threads)
+}
