@@ -5,7 +5,8 @@
 //! or (`TrackerConfig::weak_continues_tentative`) tentative (ByteTrack's low-score
 //! detections, which go to confirmed tracks only), a second chance by distance alone for
 //! confirmed tracks still without a detection (ByteTrack's second association), and the
-//! merges, regions that hide a second confirmed track's object.
+//! merges, regions that hide a second confirmed track's object. The two later rounds leave a
+//! region that overlaps one taken in the first: it is the rest of that track's object.
 
 use super::appearance::Appearance;
 use super::hungarian::assign;
@@ -75,13 +76,24 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
     } else {
         assign(&strong)
     };
+    // A region that overlaps one a track took in the first round is a part of that track's
+    // object (one object seen as a fragment beside the rest of it), not another object: the
+    // later rounds, which admit weaker evidence, leave it.
+    let first: Vec<usize> = matches.iter().flatten().copied().collect();
+    let claimed: Vec<bool> = (0..detections.len())
+        .map(|j| {
+            first
+                .iter()
+                .any(|&k| k != j && overlaps(&detections[j], &detections[k]))
+        })
+        .collect();
     if detections.iter().any(|d| d.weak) {
         let rows: Vec<usize> = (0..tracks.len())
             .filter(|&i| {
                 matches[i].is_none() && (tracks[i].confirmed || config.weak_continues_tentative)
             })
             .collect();
-        let weak = only(&cost, &rows, |j| detections[j].weak);
+        let weak = only(&cost, &rows, |j| detections[j].weak && !claimed[j]);
         for (&i, m) in rows.iter().zip(assign(&weak)) {
             if m.is_some() {
                 matches[i] = m;
@@ -108,9 +120,10 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
                 detections
                     .iter()
                     .zip(&taken)
-                    .map(|(d, &t)| {
+                    .enumerate()
+                    .map(|(j, (d, &t))| {
                         let dist = (d.centroid.0 - p.0).hypot(d.centroid.1 - p.1);
-                        if !t && dist <= exclusion && looks(track, d) {
+                        if !t && !claimed[j] && dist <= exclusion && looks(track, d) {
                             dist
                         } else {
                             f64::INFINITY
@@ -142,6 +155,11 @@ pub fn associate(tracks: &[Tracked], detections: &[Region], config: &TrackerConf
         }
     }
     Association { matches, shared }
+}
+
+/// True when either region's centre lies within the other's equivalent radius.
+fn overlaps(a: &Region, b: &Region) -> bool {
+    covers(a, b.centroid) || covers(b, a.centroid)
 }
 
 /// The matching cascade: the confirmed tracks' optimal assignment first, then the tentative
@@ -249,6 +267,39 @@ mod tests {
             associate(&tracks[1..], &near, &config).matches,
             vec![Some(1)]
         );
+    }
+
+    /// One object seen as a small region passed with its flow and a large weak one around it:
+    /// its track takes the small one, and a confirmed track that lost its own object nearby
+    /// (its gate wide after coasting) does not take the large one; a weak region apart from
+    /// the taken one it still takes.
+    #[test]
+    fn a_region_around_one_a_track_took_goes_to_no_other_track() {
+        let config = TrackerConfig::default();
+        let mut lost = track((40.0, 62.0), (-3.5, 1.0), true);
+        lost.misses = 10;
+        let tracks = [track((62.0, 50.0), (-4.0, 1.0), true), lost];
+        // The fragment (radius √(58/π) ≈ 4 px) 3.5 px from the large region's centre.
+        let fragment = det(62.5, 50.0, (-2.5, 1.0), 58);
+        let around = Region {
+            weak: true,
+            ..det(59.0, 50.5, (-4.0, 1.0), 960)
+        };
+        let a = associate(&tracks, &[fragment.clone(), around.clone()], &config);
+        assert_eq!(a.matches, vec![Some(0), None]);
+        let alone = associate(&tracks[1..], &[around], &config);
+        assert_eq!(
+            alone.matches,
+            vec![Some(0)],
+            "without the fragment, the lost track's"
+        );
+        // A weak region 36 px from the fragment is another object: the lost track takes it.
+        let apart = Region {
+            weak: true,
+            ..det(42.0, 80.0, (-3.5, 1.0), 300)
+        };
+        let a = associate(&tracks, &[fragment, apart], &config);
+        assert_eq!(a.matches, vec![Some(0), Some(1)]);
     }
 
     #[test]
