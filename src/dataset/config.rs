@@ -17,6 +17,8 @@ use crate::scene::patterns::RocketStep;
 pub enum SceneSpec {
     /// FlyingChairs-like layered scenes.
     Chairs(ChairsConfig),
+    /// Camouflaged discs moving over a still background (the tracking clips' scenes).
+    Movers(crate::scene::MoversConfig),
     /// The Note S12 rocket moved by 3 px in one direction.
     Rocket {
         step: RocketStep,
@@ -100,6 +102,7 @@ impl GeneratorConfig {
         self.camera.validate()?;
         match &self.scene {
             SceneSpec::Chairs(c) => c.validate(),
+            SceneSpec::Movers(m) => m.validate(),
             SceneSpec::Rocket { channels, .. } | SceneSpec::Disc { channels, .. }
                 if *channels != 1 && *channels != 3 =>
             {

@@ -221,6 +221,7 @@ impl Generator {
                 r.draw = c.has_variety().then_some(draw);
                 Ok(r)
             }
+            SceneSpec::Movers(m) => layered(m.scene(seed)?),
             SceneSpec::Rocket { step, channels } => layered(patterns::rocket(*step, *channels)),
             SceneSpec::Disc { radius, channels } => layered(patterns::disc(*radius, *channels)?),
             SceneSpec::Dataset { .. } => {

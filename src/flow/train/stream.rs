@@ -114,14 +114,19 @@ impl Stream {
             }
             let file = base.join(&source.generator);
             let generator_config = GeneratorConfig::from_file(&file)?;
-            let SceneSpec::Chairs(chairs) = &generator_config.scene else {
-                return Err(crate::io::in_config(
-                    &file,
-                    "scene.kind: a stream makes pairs of chairs scenes (the other kinds are \
-                     fixed patterns or a finite dataset: generate them into a folder)",
-                ));
+            let (height, width, photos) = match &generator_config.scene {
+                SceneSpec::Chairs(c) => (c.height, c.width, c.photos.as_ref()),
+                SceneSpec::Movers(m) => (m.height, m.width, None),
+                _ => {
+                    return Err(crate::io::in_config(
+                        &file,
+                        "scene.kind: a stream makes pairs of chairs or movers scenes (the other \
+                         kinds are fixed patterns or a finite dataset: generate them into a \
+                         folder)",
+                    ));
+                }
             };
-            smallest = (smallest.0.min(chairs.height), smallest.1.min(chairs.width));
+            smallest = (smallest.0.min(height), smallest.1.min(width));
             // The data's identity: the share, the config as written (its keys in order, so
             // neither its layout nor a move of the checkout counts; a knob added to the code
             // later, off by default, leaves it as it was), the photographs, a probe.
@@ -133,7 +138,7 @@ impl Stream {
                     .as_bytes(),
             );
             hash.update([0]);
-            if let Some(photos) = &chairs.photos {
+            if let Some(photos) = photos {
                 for p in photos.library()?.iter() {
                     hash.update(p.name.as_bytes());
                     hash.update([0]);
