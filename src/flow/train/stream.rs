@@ -383,6 +383,49 @@ mod tests {
     }
 
     /// What cannot make training pairs is refused with the file and the reason.
+    /// A movers source mixes with a chairs one: its frame counts toward the smallest, and its
+    /// pairs are its discs moving over a still background.
+    #[test]
+    fn a_movers_source_makes_pairs_beside_chairs() {
+        let dir = folder("movers");
+        write(&dir, "a.json", SMALL);
+        write(
+            &dir,
+            "m.json",
+            r#"{"count": 1, "seed": 5, "scene": {"kind": "movers", "width": 48, "height": 36, "discs": [1, 1], "radius_px": [5, 5], "speed_px": [3, 3]}}"#,
+        );
+        let mix = write(
+            &dir,
+            "mix.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1}, {"generator": "m.json", "weight": 1}]}"#,
+        );
+        let stream = Stream::open(&mix).expect("open");
+        assert_eq!(stream.smallest_frame(), (32, 40));
+        let (.., flow) = stream.generators[1].pair(7).expect("pair");
+        let flow = flow.expect("movers pairs have flow");
+        let moving: Vec<f32> = flow
+            .data()
+            .chunks(flow.width() * flow.height())
+            .fold(vec![0.0; flow.width() * flow.height()], |mut m, plane| {
+                for (m, v) in m.iter_mut().zip(plane) {
+                    *m += v * v;
+                }
+                m
+            })
+            .into_iter()
+            .filter(|&m| m > 0.0)
+            .map(f32::sqrt)
+            .collect();
+        // One disc of radius 5 (about 79 px) moving 3 px; everything else still.
+        assert!(
+            (60..=100).contains(&moving.len()),
+            "{} moving px",
+            moving.len()
+        );
+        assert!(moving.iter().all(|m| (m - 3.0).abs() < 1e-3));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     #[test]
     fn bad_streams_are_refused() {
         let dir = folder("bad");
@@ -408,7 +451,7 @@ mod tests {
             ),
             (
                 r#"{"sources": [{"generator": "disc.json", "weight": 1}]}"#,
-                "chairs",
+                "chairs or movers",
             ),
             (
                 r#"{"sources": [{"generator": "a.json", "weight": 1, "x": 2}]}"#,
