@@ -74,8 +74,9 @@ impl MoversConfig {
                 ));
             }
         }
-        if self.radius_px[0] <= 1.0 || 2.0 * self.radius_px[1] >= self.width.min(self.height) as f64
-        {
+        // A disc's centre is drawn in [r, side − 1 − r]: that range must not be empty.
+        let side = self.width.min(self.height) as f64;
+        if self.radius_px[0] <= 1.0 || 2.0 * self.radius_px[1] >= side - 1.0 {
             return Err(Error::invalid(
                 "scene.radius_px",
                 format!(
@@ -225,5 +226,17 @@ mod tests {
             })
             .contains("32..=8192")
         );
+        // The largest disc whose centre still has room in a 64-row frame, and one past it.
+        let fits = MoversConfig {
+            radius_px: [4.0, 31.4],
+            discs: [5, 5],
+            ..small()
+        };
+        assert!((0..20).all(|seed| fits.trajectory(seed).is_ok()));
+        let past = MoversConfig {
+            radius_px: [4.0, 31.6],
+            ..small()
+        };
+        assert!(bad(past).contains("scene.radius_px"));
     }
 }
