@@ -382,7 +382,6 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
-    /// What cannot make training pairs is refused with the file and the reason.
     /// A movers source mixes with a chairs one: its frame counts toward the smallest, and its
     /// pairs are its discs moving over a still background.
     #[test]
@@ -403,18 +402,13 @@ mod tests {
         assert_eq!(stream.smallest_frame(), (32, 40));
         let (.., flow) = stream.generators[1].pair(7).expect("pair");
         let flow = flow.expect("movers pairs have flow");
-        let moving: Vec<f32> = flow
-            .data()
-            .chunks(flow.width() * flow.height())
-            .fold(vec![0.0; flow.width() * flow.height()], |mut m, plane| {
-                for (m, v) in m.iter_mut().zip(plane) {
-                    *m += v * v;
-                }
-                m
+        let moving: Vec<f32> = (0..flow.height())
+            .flat_map(|y| (0..flow.width()).map(move |x| (y, x)))
+            .map(|(y, x)| {
+                let (u, v) = flow.get(y, x);
+                u.hypot(v)
             })
-            .into_iter()
             .filter(|&m| m > 0.0)
-            .map(f32::sqrt)
             .collect();
         // One disc of radius 5 (about 79 px) moving 3 px; everything else still.
         assert!(
@@ -426,6 +420,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
+    /// What cannot make training pairs is refused with the file and the reason.
     #[test]
     fn bad_streams_are_refused() {
         let dir = folder("bad");
