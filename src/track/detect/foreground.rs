@@ -192,47 +192,140 @@ impl<'a> Foreground<'a> {
     /// the new centre (`Moved`), a centre too far from `start` (`Far`), or why there is none
     /// (`Kept`).
     pub(super) fn place(&self, start: (f64, f64), area: usize, cfg: &PlaceConfig) -> Placement {
+        self.place_jointly(&[(start, area)], cfg)
+            .pop()
+            .unwrap_or_else(|| Placement::Kept("no region".into()))
+    }
+
+    /// The mean shift of several regions at once (a crowd: two movers side by side, whose
+    /// flows' halos join): in each step every region's disc weighs only the pixels nearer its
+    /// own centre than any other's, in units of each one's radius, so each converges on its
+    /// own object rather than on whichever is brighter. Each gets `place`'s verdict; two whose
+    /// centres end on one blob of foreground (no valley between them, `valley_between`: one
+    /// object, or two that touch) are both kept at their flow centroids, since the frame
+    /// cannot tell them apart there. One region is `place`.
+    pub(super) fn place_jointly(
+        &self,
+        starts: &[((f64, f64), usize)],
+        cfg: &PlaceConfig,
+    ) -> Vec<Placement> {
         let (w, h) = (self.current.width, self.current.height);
-        let radius = (area as f64 / std::f64::consts::PI).sqrt().max(2.0);
-        let mut p = start;
-        let mut cover = 0usize;
+        let radii: Vec<f64> = starts
+            .iter()
+            .map(|&(_, area)| (area as f64 / std::f64::consts::PI).sqrt().max(2.0))
+            .collect();
+        let mut at: Vec<(f64, f64)> = starts.iter().map(|&(c, _)| c).collect();
+        // Per region: Σ weight and the pixels with weight in its final disc.
+        let mut last = vec![(0.0f64, 0usize); starts.len()];
+        let mut done = vec![false; starts.len()];
         for _ in 0..cfg.iterations {
-            let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-            cover = 0;
-            for (x, y) in disc(p, radius, w, h) {
-                let wt = self.weight(x, y);
-                if wt > 0.0 {
-                    sw += wt;
-                    sx += wt * x as f64;
-                    sy += wt * y as f64;
-                    cover += 1;
+            let mut next = at.clone();
+            for (i, &p) in at.iter().enumerate() {
+                if done[i] {
+                    continue;
                 }
+                let mine = |x: f64, y: f64| {
+                    let own = (x - p.0).hypot(y - p.1) / radii[i];
+                    at.iter()
+                        .zip(&radii)
+                        .enumerate()
+                        .all(|(j, (q, r))| j == i || (x - q.0).hypot(y - q.1) / r >= own)
+                };
+                let (mut sw, mut sx, mut sy, mut cover) = (0.0, 0.0, 0.0, 0usize);
+                for (x, y) in disc(p, radii[i], w, h) {
+                    let wt = self.weight(x, y);
+                    if wt > 0.0 && mine(x as f64, y as f64) {
+                        sw += wt;
+                        sx += wt * x as f64;
+                        sy += wt * y as f64;
+                        cover += 1;
+                    }
+                }
+                last[i] = (sw, cover);
+                if sw <= 0.0 {
+                    done[i] = true;
+                    continue;
+                }
+                next[i] = (sx / sw, sy / sw);
+                done[i] = (next[i].0 - p.0).hypot(next[i].1 - p.1) < 0.05;
             }
-            if sw <= 0.0 {
-                return Placement::Kept("no foreground near the region".into());
-            }
-            let next = (sx / sw, sy / sw);
-            let step = (next.0 - p.0).hypot(next.1 - p.1);
-            p = next;
-            if step < 0.05 {
+            at = next;
+            if done.iter().all(|&d| d) {
                 break;
             }
         }
-        if (cover as f64) < cfg.min_cover * area as f64 {
-            return Placement::Kept(format!(
-                "{cover} foreground pixels for a region of {area} (the object joined the background?)"
-            ));
+        let mut out: Vec<Placement> = starts
+            .iter()
+            .zip(&at)
+            .zip(radii.iter().zip(&last))
+            .map(|((&(start, area), &p), (&radius, &(sw, cover)))| {
+                if sw <= 0.0 {
+                    return Placement::Kept("no foreground near the region".into());
+                }
+                if (cover as f64) < cfg.min_cover * area as f64 {
+                    return Placement::Kept(format!(
+                        "{cover} foreground pixels for a region of {area} (the object joined the \
+                         background?)"
+                    ));
+                }
+                let shift = (p.0 - start.0).hypot(p.1 - start.1);
+                let limit = cfg.max_shift * radius;
+                if shift > limit {
+                    return Placement::Far {
+                        to: p,
+                        shift,
+                        limit,
+                    };
+                }
+                Placement::Moved { to: p }
+            })
+            .collect();
+        let centre = |p: &Placement| match p {
+            Placement::Moved { to } | Placement::Far { to, .. } => Some(*to),
+            _ => None,
+        };
+        let mut one = vec![false; starts.len()];
+        for i in 0..starts.len() {
+            for j in i + 1..starts.len() {
+                if let (Some(p), Some(q)) = (centre(&out[i]), centre(&out[j]))
+                    && !self.valley_between(p, q)
+                {
+                    one[i] = true;
+                    one[j] = true;
+                }
+            }
         }
-        let shift = (p.0 - start.0).hypot(p.1 - start.1);
-        let limit = cfg.max_shift * radius;
-        if shift > limit {
-            return Placement::Far {
-                to: p,
-                shift,
-                limit,
-            };
+        for (i, o) in out.iter_mut().enumerate() {
+            if one[i] {
+                let (s, c) = (starts[i].0, at[i]);
+                *o = Placement::Kept(format!(
+                    "another region shares its foreground (no valley between them: the \
+                     mean shift from ({:.1}, {:.1}) ended at ({:.1}, {:.1}))",
+                    s.0, s.1, c.0, c.1
+                ));
+            }
         }
-        Placement::Moved { to: p }
+        out
+    }
+
+    /// Whether the foreground on the straight path from `p` to `q` falls below half the
+    /// weight at the lower of the two (a valley between two modes, as two peaks are told apart
+    /// at half maximum): two objects, where one blob of foreground is one object or two that
+    /// touch. The camera's PSF spreads a bright object's light into the background beside it,
+    /// so the path between two near objects need not reach zero.
+    fn valley_between(&self, p: (f64, f64), q: (f64, f64)) -> bool {
+        let (w, h) = (self.current.width, self.current.height);
+        let at = |x: f64, y: f64| {
+            let x = x.round().clamp(0.0, (w - 1) as f64) as usize;
+            let y = y.round().clamp(0.0, (h - 1) as f64) as usize;
+            self.weight(x, y)
+        };
+        let floor = 0.5 * at(p.0, p.1).min(at(q.0, q.1));
+        let n = (p.0 - q.0).hypot(p.1 - q.1).ceil() as usize;
+        (1..n).any(|k| {
+            let t = k as f64 / n as f64;
+            at(p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1)) < floor
+        })
     }
 }
 

@@ -94,25 +94,32 @@ impl StillBackground {
                 )
             };
             let mut fg = None;
-            regions
+            let mut out: Vec<Option<Placement>> = regions
                 .iter()
                 .enumerate()
-                .map(|(i, &(c, area))| {
+                .map(|(i, _)| {
                     let mine = seeds.get(i).map_or(&[][..], Vec::as_slice);
                     if cfg.split > 0.0 && mine.len() >= 2 {
                         let fg = fg.get_or_insert_with(foreground);
                         if let Some(to) = fg.split(mine, cfg) {
-                            return Placement::Split { to };
+                            return Some(Placement::Split { to });
                         }
                     }
-                    if let Some(d) = crowded(regions, i, cfg.crowd) {
-                        return Placement::Kept(format!(
-                            "another region {d:.0} px away shares its foreground"
-                        ));
-                    }
-                    let fg = fg.get_or_insert_with(foreground);
-                    fg.place(c, area, cfg)
+                    None
                 })
+                .collect();
+            // The rest in crowds (regions near each other, `crowded`), each crowd placed at
+            // once; a region alone is a crowd of one.
+            let free: Vec<usize> = (0..regions.len()).filter(|&i| out[i].is_none()).collect();
+            for crowd in crowds(regions, &free, cfg.crowd) {
+                let starts: Vec<((f64, f64), usize)> = crowd.iter().map(|&i| regions[i]).collect();
+                let fg = fg.get_or_insert_with(foreground);
+                for (&i, p) in crowd.iter().zip(fg.place_jointly(&starts, cfg)) {
+                    out[i] = Some(p);
+                }
+            }
+            out.into_iter()
+                .map(|p| p.unwrap_or_else(|| Placement::Kept("not placed".into())))
                 .collect()
         };
         let covered = match self.cfg.mask {
@@ -155,6 +162,45 @@ fn covered(
 /// The radius of a disc of `area` pixels.
 fn equivalent_radius(area: usize) -> f64 {
     (area as f64 / std::f64::consts::PI).sqrt()
+}
+
+/// The `members` (indices into `regions`) grouped into crowds: two regions are in one when
+/// they lie within `factor` × the sum of their equivalent radii of each other
+/// (`PlaceConfig::crowd`), and so on transitively; each crowd in index order, the crowds in
+/// the order of their first members.
+fn crowds(regions: &[((f64, f64), usize)], members: &[usize], factor: f64) -> Vec<Vec<usize>> {
+    let radius = equivalent_radius;
+    let near = |i: usize, j: usize| {
+        let (((x, y), a), ((u, v), b)) = (regions[i], regions[j]);
+        (u - x).hypot(v - y) < factor * (radius(a) + radius(b))
+    };
+    let mut group: Vec<usize> = (0..members.len()).collect();
+    fn root(group: &mut [usize], mut k: usize) -> usize {
+        while group[k] != k {
+            group[k] = group[group[k]];
+            k = group[k];
+        }
+        k
+    }
+    for a in 0..members.len() {
+        for b in a + 1..members.len() {
+            if near(members[a], members[b]) {
+                let (ra, rb) = (root(&mut group, a), root(&mut group, b));
+                group[ra.max(rb)] = ra.min(rb);
+            }
+        }
+    }
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    let mut slot = vec![usize::MAX; members.len()];
+    for k in 0..members.len() {
+        let r = root(&mut group, k);
+        if slot[r] == usize::MAX {
+            slot[r] = out.len();
+            out.push(Vec::new());
+        }
+        out[slot[r]].push(members[k]);
+    }
+    out
 }
 
 /// The distance to another region, when one of at least a quarter of region `i`'s area lies
