@@ -199,11 +199,12 @@ impl<'a> Foreground<'a> {
 
     /// The mean shift of several regions at once (a crowd: two movers side by side, whose
     /// flows' halos join): in each step every region's disc weighs only the pixels nearer its
-    /// own centre than any other's, in units of each one's radius, so each converges on its
-    /// own object rather than on whichever is brighter. Each gets `place`'s verdict; two whose
-    /// centres end on one blob of foreground (no valley between them, `valley_between`: one
-    /// object, or two that touch) are both kept at their flow centroids, since the frame
-    /// cannot tell them apart there. One region is `place`.
+    /// own centre than any other's of at least a quarter of its area, in units of each one's
+    /// radius, so each converges on its own object rather than on whichever is brighter. Each
+    /// gets `place`'s verdict; two whose centres end on one blob of foreground (no valley
+    /// between them, `valley_between`: one object, or two that touch) are both kept at their
+    /// flow centroids, since the frame cannot tell them apart there, except that a fragment of
+    /// less than a quarter of the other's area leaves the other placed. One region is `place`.
     pub(super) fn place_jointly(
         &self,
         starts: &[((f64, f64), usize)],
@@ -224,12 +225,17 @@ impl<'a> Foreground<'a> {
                 if done[i] {
                     continue;
                 }
+                // A member of less than a quarter of this one's area (a fragment beside its
+                // object, or of its halo) takes nothing from it.
                 let mine = |x: f64, y: f64| {
                     let own = (x - p.0).hypot(y - p.1) / radii[i];
                     at.iter()
                         .zip(&radii)
+                        .zip(starts)
                         .enumerate()
-                        .all(|(j, (q, r))| j == i || (x - q.0).hypot(y - q.1) / r >= own)
+                        .all(|(j, ((q, r), s))| {
+                            j == i || 4 * s.1 < starts[i].1 || (x - q.0).hypot(y - q.1) / r >= own
+                        })
                 };
                 let (mut sw, mut sx, mut sy, mut cover) = (0.0, 0.0, 0.0, 0usize);
                 for (x, y) in disc(p, radii[i], w, h) {
@@ -290,8 +296,11 @@ impl<'a> Foreground<'a> {
                 if let (Some(p), Some(q)) = (centre(&out[i]), centre(&out[j]))
                     && !self.valley_between(p, q)
                 {
-                    one[i] = true;
-                    one[j] = true;
+                    // A fragment (less than a quarter of the other's area) on the other's
+                    // object leaves that one placed.
+                    let (a, b) = (starts[i].1, starts[j].1);
+                    one[i] |= 4 * b >= a;
+                    one[j] |= 4 * a >= b;
                 }
             }
         }

@@ -91,9 +91,11 @@ pub struct PlaceConfig {
     /// of this many times their equivalent radius; a pixel left free in fewer than
     /// `foreground::MIN_UNCOVERED` frames takes the median of them all. 0 turns it off.
     pub mask: f64,
-    /// A region is not placed when another of at least a quarter of its area lies within
-    /// this many times the sum of their equivalent radii (the foreground near it may be the
-    /// other's: a crossing, or a fragment beside its object).
+    /// Regions within this many times the sum of their equivalent radii of each other form a
+    /// crowd (two movers side by side, or a fragment beside its object), whose members are
+    /// placed together: each pixel of the foreground counts for the nearest member's mean
+    /// shift only, and two members whose centres end on one blob of foreground (no valley
+    /// between them) keep their flow centroids.
     pub crowd: f64,
     /// Splitting a merged region (`track::detect::split`): the foreground's centres found from the
     /// predictions of the tracks it hides must lie at least this share of the sum of their

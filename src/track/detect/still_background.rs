@@ -108,8 +108,8 @@ impl StillBackground {
                     None
                 })
                 .collect();
-            // The rest in crowds (regions near each other, `crowded`), each crowd placed at
-            // once; a region alone is a crowd of one.
+            // The rest in crowds (`crowds`), each crowd placed at once; a region alone is a
+            // crowd of one.
             let free: Vec<usize> = (0..regions.len()).filter(|&i| out[i].is_none()).collect();
             for crowd in crowds(regions, &free, cfg.crowd) {
                 let starts: Vec<((f64, f64), usize)> = crowd.iter().map(|&i| regions[i]).collect();

@@ -233,7 +233,8 @@ fn a_moving_camera_a_crowd_or_a_stopped_object_keeps_the_flow_centroid() {
         matches!(&out[0], Placement::Kept(w) if w.contains("1 of 10")),
         "{out:?}"
     );
-    // Two regions of one size 12 px apart: neither is placed.
+    // Two regions of one size 12 px apart on one disc: their mean shifts end on one blob of
+    // foreground, with no valley between them, and neither is placed.
     let (mut m, f) = model_at(n, moving);
     let out = m.place(&f, 0.0, &[(truth, area), ((truth.0 + 12.0, truth.1), area)]);
     assert!(
@@ -312,6 +313,58 @@ fn bad_settings_are_refused_by_name() {
             .to_string();
         assert!(e.contains(name), "{e}");
     }
+}
+
+#[test]
+fn two_movers_side_by_side_are_each_placed_on_their_own_object() {
+    // Two discs of radius 8 pass each other, one right along y = 26 and one left along y = 50:
+    // at frame n their centres are 24 px apart, with 8 px of background between them. An
+    // estimated flow's regions lean into each other (their halos join between the discs):
+    // each region's centroid lies 5 px off its disc, towards the other.
+    let n = 34;
+    let pair = |k: usize| {
+        let t = k as f64 - 34.0;
+        [(48.0 + 1.5 * t, 26.0), (48.0 - 1.5 * t, 50.0)]
+    };
+    let mut m = StillBackground::new(PlaceConfig::default()).expect("default settings");
+    for k in 0..n {
+        m.place(&discs(k, &pair(k), 7), 0.0, &[]);
+    }
+    let f = discs(n, &pair(n), 7);
+    let [a, b] = pair(n);
+    let area = (2.0 * std::f64::consts::PI * R * R) as usize;
+    let out = m.place(
+        &f,
+        0.0,
+        &[((a.0, a.1 + 5.0), area), ((b.0, b.1 - 5.0), area)],
+    );
+    for (p, want) in out.iter().zip([a, b]) {
+        match p {
+            Placement::Moved { to } => {
+                let err = (to.0 - want.0).hypot(to.1 - want.1);
+                assert!(err < 1.5, "placed at {to:?}, object at {want:?}: {out:?}");
+            }
+            other => panic!("not placed: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn regions_near_each_other_form_one_crowd_through_their_neighbours() {
+    // Equivalent radii 10 px (area 314): within 2.5 × 20 = 50 px of each other is a crowd.
+    let r = |x: f64| ((x, 0.0), 314);
+    let regions = [r(0.0), r(45.0), r(90.0), r(200.0), r(400.0)];
+    // 0 and 90 are 90 px apart but both near 45; 200 and 400 are alone.
+    assert_eq!(
+        crowds(&regions, &[0, 1, 2, 3, 4], 2.5),
+        vec![vec![0, 1, 2], vec![3], vec![4]]
+    );
+    // Without 45 between them, 0 and 90 are no crowd.
+    assert_eq!(
+        crowds(&regions, &[0, 2, 3], 2.5),
+        vec![vec![0], vec![2], vec![3]]
+    );
+    assert!(crowds(&regions, &[], 2.5).is_empty());
 }
 
 #[test]
