@@ -192,13 +192,13 @@ fn crowds(regions: &[((f64, f64), usize)], members: &[usize], factor: f64) -> Ve
     }
     let mut out: Vec<Vec<usize>> = Vec::new();
     let mut slot = vec![usize::MAX; members.len()];
-    for k in 0..members.len() {
+    for (k, &m) in members.iter().enumerate() {
         let r = root(&mut group, k);
         if slot[r] == usize::MAX {
             slot[r] = out.len();
             out.push(Vec::new());
         }
-        out[slot[r]].push(members[k]);
+        out[slot[r]].push(m);
     }
     out
 }
