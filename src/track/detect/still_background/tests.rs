@@ -315,6 +315,26 @@ fn bad_settings_are_refused_by_name() {
     }
 }
 
+/// Two discs of radius 8 passing each other at 1.5 px a frame, one right along `y1` and one
+/// left along `y2`, both at x = 48 in frame `n`: the model (with `cfg`) after frames 0 … n − 1,
+/// frame n and the two centres in it.
+fn passing(
+    cfg: PlaceConfig,
+    n: usize,
+    y1: f64,
+    y2: f64,
+) -> (StillBackground, ColourFrame, [(f64, f64); 2]) {
+    let pair = |k: usize| {
+        let t = k as f64 - n as f64;
+        [(48.0 + 1.5 * t, y1), (48.0 - 1.5 * t, y2)]
+    };
+    let mut m = StillBackground::new(cfg).expect("valid settings");
+    for k in 0..n {
+        m.place(&discs(k, &pair(k), 7), 0.0, &[]);
+    }
+    (m, discs(n, &pair(n), 7), pair(n))
+}
+
 #[test]
 fn two_movers_side_by_side_are_each_placed_on_their_own_object() {
     // Two discs of radius 8 pass each other, one right along y = 26 and one left along y = 50:
@@ -322,16 +342,7 @@ fn two_movers_side_by_side_are_each_placed_on_their_own_object() {
     // estimated flow's regions lean into each other (their halos join between the discs):
     // each region's centroid lies 5 px off its disc, towards the other.
     let n = 34;
-    let pair = |k: usize| {
-        let t = k as f64 - 34.0;
-        [(48.0 + 1.5 * t, 26.0), (48.0 - 1.5 * t, 50.0)]
-    };
-    let mut m = StillBackground::new(PlaceConfig::default()).expect("default settings");
-    for k in 0..n {
-        m.place(&discs(k, &pair(k), 7), 0.0, &[]);
-    }
-    let f = discs(n, &pair(n), 7);
-    let [a, b] = pair(n);
+    let (mut m, f, [a, b]) = passing(PlaceConfig::default(), n, 26.0, 50.0);
     let area = (2.0 * std::f64::consts::PI * R * R) as usize;
     let out = m.place(
         &f,
@@ -372,16 +383,7 @@ fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_
     // Two discs of radius 8 meet: one moves right along y = 30, the other left along
     // y = 46, their centres 16 px apart (8 px of background between them) at frame n.
     let (n, area) = (34, (4.0 * std::f64::consts::PI * R * R) as usize);
-    let pair = |k: usize| {
-        let t = k as f64 - 34.0;
-        [(48.0 + 1.5 * t, 30.0), (48.0 - 1.5 * t, 46.0)]
-    };
-    let mut m = StillBackground::new(PlaceConfig::default()).expect("default settings");
-    for k in 0..n {
-        m.place(&discs(k, &pair(k), 7), 0.0, &[]);
-    }
-    let f = discs(n, &pair(n), 7);
-    let [a, b] = pair(n);
+    let (mut m, f, [a, b]) = passing(PlaceConfig::default(), n, 30.0, 46.0);
     // The flow's one blob between them; the two tracks' predictions 3 px off their objects.
     let merged = [((48.0, 38.0), area)];
     let seeds = vec![vec![
@@ -430,14 +432,11 @@ fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_
         split: 0.0,
         ..PlaceConfig::default()
     };
-    let mut m = StillBackground::new(cfg).expect("valid settings");
-    for k in 0..n {
-        m.place(&discs(k, &pair(k), 7), 0.0, &[]);
-    }
+    let (mut m, f, _) = passing(cfg, n, 30.0, 46.0);
     let seeds = vec![vec![
         ((a.0 - 3.0, a.1), 1.2 * R),
         ((b.0 + 2.0, b.1 - 2.0), 1.2 * R),
     ]];
-    let out = m.place_or_split(&discs(n, &pair(n), 7), 0.0, &merged, &seeds);
+    let out = m.place_or_split(&f, 0.0, &merged, &seeds);
     assert!(!matches!(out[0], Placement::Split { .. }), "{out:?}");
 }
