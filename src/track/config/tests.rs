@@ -54,7 +54,7 @@ fn the_profiles_are_the_old_resolved_defaults() {
         let t = &c.tracker;
         assert_eq!(
             (t.confirm, t.max_gate_factor, t.match_cascade),
-            (5, 2.0, false)
+            (5, 2.0, true)
         );
         assert_eq!((t.consistency_max_ratio, t.partial_area_ratio), (1.0, 0.35));
         assert_eq!((t.max_coast_reported, t.reid_frames), (0, 150));

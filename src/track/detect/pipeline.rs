@@ -32,6 +32,10 @@ pub struct Candidate {
     pub residuals: Option<(f64, f64)>,
     pub accepted: bool,
     pub reason: String,
+    /// A weak detection beside another region (`retry::crowded_retries`), not accepted yet:
+    /// it may be a piece of its neighbour's object, or a mover of its own. It is accepted only
+    /// where the still background places it on an object of its own (`place`).
+    pub beside: bool,
     /// What the still background did with an accepted region's centroid (when it ran).
     pub placement: Option<Placement>,
 }
@@ -89,7 +93,11 @@ impl FrameDetection {
     /// not support the fitted background motion or when that motion is small. A region over
     /// the predictions of two or more `seeds` (the confirmed tracks) is split between them
     /// where the foreground shows an object near each (`track::detect::split`): its parts take its
-    /// place in the candidates, one per track.
+    /// place in the candidates, one per track. A weak detection beside another region
+    /// (`Candidate::beside`) is placed with its crowd and accepted where it is placed on an
+    /// object of its own, a mover beside another one; where it is not (a piece of its
+    /// neighbour's object, or nothing the frame shows), it stays refused and the crowd is
+    /// placed without it.
     pub fn place(&mut self, model: &mut StillBackground, frame: &ColourFrame, seeds: &[Seed]) {
         let camera = match self.rejected_background {
             None if self.background_explained => {
@@ -97,24 +105,33 @@ impl FrameDetection {
             }
             _ => 0.0,
         };
-        let accepted: Vec<&Candidate> = self.candidates.iter().filter(|c| c.accepted).collect();
-        let wanted: Vec<((f64, f64), usize)> = accepted
+        let wanted: Vec<&Candidate> = self
+            .candidates
+            .iter()
+            .filter(|c| c.accepted || c.beside)
+            .collect();
+        let at_region: Vec<((f64, f64), usize)> = wanted
             .iter()
             .map(|c| (c.region.centroid, c.region.pixels))
             .collect();
-        let hidden: Vec<Vec<Seed>> = accepted
+        // A pending detection hides no track: it is split between none.
+        let hidden: Vec<Vec<Seed>> = wanted
             .iter()
-            .map(|c| split::covered(&c.region, seeds))
+            .map(|c| match c.beside {
+                true => Vec::new(),
+                false => split::covered(&c.region, seeds),
+            })
             .collect();
         let at: Vec<Vec<((f64, f64), f64)>> = hidden
             .iter()
             .map(|h| h.iter().map(|s| (s.at, s.radius)).collect())
             .collect();
-        let placed = model.place_or_split(frame, camera, &wanted, &at);
+        let pending: Vec<bool> = wanted.iter().map(|c| c.beside).collect();
+        let placed = model.place_or_split(frame, camera, &at_region, &at, &pending);
         let mut out = Vec::with_capacity(self.candidates.len());
         let mut next = placed.into_iter().zip(hidden);
         for mut c in std::mem::take(&mut self.candidates) {
-            if !c.accepted {
+            if !(c.accepted || c.beside) {
                 out.push(c);
                 continue;
             }
@@ -122,6 +139,20 @@ impl FrameDetection {
                 out.push(c);
                 continue;
             };
+            if c.beside {
+                c.beside = false;
+                match &p {
+                    Placement::Moved { to } => {
+                        c.accepted = true;
+                        c.region.placed = Some(*to);
+                        c.reason += ", placed on an object of its own";
+                    }
+                    _ => c.reason += &format!(": {}", p.describe()),
+                }
+                c.placement = Some(p);
+                out.push(c);
+                continue;
+            }
             match &p {
                 Placement::Moved { to } => c.region.placed = Some(*to),
                 Placement::Far { to, .. } => c.region.foreground = Some(*to),
@@ -274,11 +305,13 @@ pub fn detect(
                 residuals,
                 accepted,
                 reason,
+                beside: false,
                 placement: None,
             }
         })
         .collect();
-    // A retried region beside another may be two objects' mixture: it is not accepted.
+    // A retried region beside another may be a piece of its neighbour's object: it is not
+    // accepted unless the still background places it on an object of its own (`place`).
     let places: Vec<_> = candidates
         .iter()
         .map(|c| (c.region.centroid, c.region.pixels))
@@ -293,6 +326,7 @@ pub fn detect(
     {
         if crowded {
             c.accepted = false;
+            c.beside = true;
             c.reason = format!("{}, but beside another region", c.reason);
         }
     }

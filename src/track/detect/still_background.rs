@@ -47,21 +47,26 @@ impl StillBackground {
         camera_motion: f64,
         regions: &[((f64, f64), usize)],
     ) -> Vec<Placement> {
-        self.place_or_split(frame, camera_motion, regions, &[])
+        self.place_or_split(frame, camera_motion, regions, &[], &[])
     }
 
     /// As `place`, and each region with two or more seeds (the predictions and radii of the
     /// tracks it hides, `seeds[i]` for region i; a shorter list means none) is split between
     /// them where the foreground shows an object near each (`Placement::Split`): the
     /// mean shift from each seed must be placed (within `max_shift` of its radius) and the
-    /// centres lie at least `split` × the sum of their radii apart.
+    /// centres lie at least `split` × the sum of their radii apart. A region marked `pending`
+    /// (`pending[i]`; a shorter list means none) stands only if it is placed on an object of
+    /// its own (`Placement::Moved`): otherwise its crowd is placed again without it, it gets
+    /// `Kept`, and it masks nothing in the frame's background.
     pub fn place_or_split(
         &mut self,
         frame: &ColourFrame,
         camera_motion: f64,
         regions: &[((f64, f64), usize)],
         seeds: &[Vec<((f64, f64), f64)>],
+        pending: &[bool],
     ) -> Vec<Placement> {
+        let is_pending = |i: usize| pending.get(i).copied().unwrap_or(false);
         let cfg = &self.cfg;
         let kept = |why: String| vec![Placement::Kept(why); regions.len()];
         let out = if camera_motion > cfg.max_camera_motion {
@@ -111,11 +116,33 @@ impl StillBackground {
             // The rest in crowds (`crowds`), each crowd placed at once; a region alone is a
             // crowd of one.
             let free: Vec<usize> = (0..regions.len()).filter(|&i| out[i].is_none()).collect();
-            for crowd in crowds(regions, &free, cfg.crowd) {
-                let starts: Vec<((f64, f64), usize)> = crowd.iter().map(|&i| regions[i]).collect();
+            for mut crowd in crowds(regions, &free, cfg.crowd) {
                 let fg = fg.get_or_insert_with(foreground);
-                for (&i, p) in crowd.iter().zip(fg.place_jointly(&starts, cfg)) {
-                    out[i] = Some(p);
+                // A pending member the foreground does not place on an object of its own
+                // (a piece of a neighbour's object, or no object) leaves the crowd, and the
+                // rest is placed again without it.
+                while !crowd.is_empty() {
+                    let starts: Vec<((f64, f64), usize)> =
+                        crowd.iter().map(|&i| regions[i]).collect();
+                    let placed = fg.place_jointly(&starts, cfg);
+                    let refused = |i: usize, p: &Placement| {
+                        is_pending(i) && !matches!(p, Placement::Moved { .. })
+                    };
+                    if !crowd.iter().zip(&placed).any(|(&i, p)| refused(i, p)) {
+                        for (&i, p) in crowd.iter().zip(placed) {
+                            out[i] = Some(p);
+                        }
+                        break;
+                    }
+                    for (&i, p) in crowd.iter().zip(&placed) {
+                        if refused(i, p) {
+                            out[i] = Some(Placement::Kept(format!(
+                                "not placed on an object of its own ({})",
+                                p.describe()
+                            )));
+                        }
+                    }
+                    crowd.retain(|&i| out[i].is_none());
                 }
             }
             out.into_iter()
@@ -123,7 +150,7 @@ impl StillBackground {
                 .collect()
         };
         let covered = match self.cfg.mask {
-            m if m > 0.0 => covered(regions, seeds, &out, m),
+            m if m > 0.0 => covered(regions, seeds, &out, m, is_pending),
             _ => Vec::new(),
         };
         self.frames.push_back(frame.clone());
@@ -137,16 +164,21 @@ impl StillBackground {
 }
 
 /// The discs frame n's objects cover, `mask` × their equivalent radius about where each was
-/// placed (its flow centroid where it was not; each part of a split about its own centre).
+/// placed (its flow centroid where it was not; each part of a split about its own centre); a
+/// pending region covers something only where it was placed.
 fn covered(
     regions: &[((f64, f64), usize)],
     seeds: &[Vec<((f64, f64), f64)>],
     placed: &[Placement],
     mask: f64,
+    pending: impl Fn(usize) -> bool,
 ) -> Covered {
     let radius = equivalent_radius;
     let mut out = Vec::with_capacity(regions.len());
     for (i, &(c, area)) in regions.iter().enumerate() {
+        if pending(i) && !matches!(placed.get(i), Some(Placement::Moved { .. })) {
+            continue;
+        }
         match placed.get(i) {
             Some(Placement::Split { to }) => {
                 let mine = seeds.get(i).map_or(&[][..], Vec::as_slice);

@@ -1,7 +1,8 @@
 //! Association of one frame's detections with the tracks (Note S13's many objects, Movie S2):
 //! gated optimal assignment on the distance to each track's prediction (with its velocity and
 //! appearance gates and the appearance cost) over the detections that passed the photometric
-//! test with their flow, then the weak ones (`track::detect::retry`) for the tracks left, confirmed
+//! test with their flow, in DeepSORT's matching cascade (the confirmed tracks seen most
+//! recently first, the tentative ones last), then the weak ones (`track::detect::retry`) for the tracks left, confirmed
 //! or (`TrackerConfig::weak_continues_tentative`) tentative (ByteTrack's low-score
 //! detections, which go to confirmed tracks only), a second chance by distance alone for
 //! confirmed tracks still without a detection (ByteTrack's second association), and the
@@ -162,14 +163,24 @@ fn overlaps(a: &Region, b: &Region) -> bool {
     covers(a, b.centroid) || covers(b, a.centroid)
 }
 
-/// The matching cascade: the confirmed tracks' optimal assignment first, then the tentative
-/// tracks' on the detections the confirmed ones left.
+/// The matching cascade (DeepSORT's, Wojke et al. 2017): the optimal assignment of the
+/// confirmed tracks seen in the last frame first, then of those missed once on the detections
+/// they left, and so on, and the tentative tracks' last. A track that has coasted longer has
+/// the less certain prediction, and its gate has widened: given the same detection, a track
+/// seen a frame ago keeps its object rather than lose it to one lost for several (two movers
+/// that cross, one of whose flow fell short).
 fn cascade(tracks: &[Tracked], cost: &[Vec<f64>]) -> Vec<Option<usize>> {
     let mut matches = vec![None; tracks.len()];
     let mut taken = vec![false; cost.first().map_or(0, Vec::len)];
-    for confirmed in [true, false] {
+    // (tentative, misses) per level: the confirmed tracks by their misses, the tentative ones
+    // as one level after them.
+    let level = |t: &Tracked| (!t.confirmed, if t.confirmed { t.misses } else { 0 });
+    let mut levels: Vec<(bool, usize)> = tracks.iter().map(level).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    for at in levels {
         let rows: Vec<usize> = (0..tracks.len())
-            .filter(|&i| tracks[i].confirmed == confirmed)
+            .filter(|&i| level(&tracks[i]) == at)
             .collect();
         let sub = only(cost, &rows, |j| !taken[j]);
         for (&i, m) in rows.iter().zip(assign(&sub)) {
@@ -348,6 +359,7 @@ mod tests {
             det(20.0, 10.0, (1.0, 0.0), 100),
             det(-15.0, 10.0, (1.0, 0.0), 100),
         ];
+        config.match_cascade = false;
         assert_eq!(
             associate(&tracks, &dets, &config).matches,
             vec![Some(1), Some(0)]
@@ -365,6 +377,49 @@ mod tests {
         assert_eq!(
             associate(&tracks, &dets, &config).matches,
             vec![Some(0), Some(1)]
+        );
+    }
+
+    #[test]
+    fn a_track_seen_more_recently_is_matched_before_one_that_coasted() {
+        // Two confirmed tracks want the one detection: the one seen in the last frame is 20 px
+        // from it, the one that has coasted for four frames (its gate widened to 2 × 40 px)
+        // 12 px. One assignment gives it to the nearer, the coasting one; the cascade to the
+        // one seen a frame ago. Without that one, the coasting track takes it.
+        let mut config = TrackerConfig::default();
+        let mut lost = track((12.0, 0.0), (1.0, 0.0), true);
+        lost.misses = 4;
+        let seen = track((-20.0, 0.0), (1.0, 0.0), true);
+        let dets = [det(0.0, 0.0, (1.0, 0.0), 100)];
+        let tracks = [lost, seen];
+        assert_eq!(
+            associate(&tracks, &dets, &config).matches,
+            vec![None, Some(0)]
+        );
+        config.match_cascade = false;
+        assert_eq!(
+            associate(&tracks, &dets, &config).matches,
+            vec![Some(0), None]
+        );
+        config.match_cascade = true;
+        assert_eq!(
+            associate(&tracks[..1], &dets, &config).matches,
+            vec![Some(0)]
+        );
+        // Each level is optimal among its own tracks: two tracks missed once share two
+        // detections by distance, after the one seen last frame took its own.
+        let mut a = track((100.0, 0.0), (1.0, 0.0), true);
+        let mut b = track((130.0, 0.0), (1.0, 0.0), true);
+        (a.misses, b.misses) = (1, 1);
+        let c = track((-50.0, 0.0), (1.0, 0.0), true);
+        let dets = [
+            det(128.0, 0.0, (1.0, 0.0), 100),
+            det(-49.0, 0.0, (1.0, 0.0), 100),
+            det(104.0, 0.0, (1.0, 0.0), 100),
+        ];
+        assert_eq!(
+            associate(&[a, b, c], &dets, &config).matches,
+            vec![Some(2), Some(0), Some(1)]
         );
     }
 

@@ -76,10 +76,12 @@ pub struct TrackerConfig {
     /// and within this share of the region's equivalent radius of the prediction: the motion
     /// model, not the smeared flow, vouches for it. 0 turns it off.
     pub foreground_gate: f64,
-    /// Matching cascade (DeepSORT's): the confirmed tracks are matched first, the tentative
-    /// ones then to the detections left. Without it, one assignment over all tracks
-    /// maximises the number of matches, so a tentative track born on a fragment can push a
-    /// confirmed track onto a farther detection.
+    /// Matching cascade (DeepSORT's): the confirmed tracks are matched in order of recency
+    /// (those seen in the last frame first, then those missed once, …), the tentative ones
+    /// last, each to the detections the earlier ones left. Without it, one assignment over all
+    /// tracks maximises the number of matches, so a tentative track born on a fragment can
+    /// push a confirmed track onto a farther detection, and a track that has coasted, its gate
+    /// widened, can take the object of one seen a frame ago.
     pub match_cascade: bool,
     /// Re-identification: a confirmed track that ended (its patience spent, or it coasted out
     /// of the view) is remembered for this many frames after it was last seen; 0 turns
@@ -122,7 +124,7 @@ impl Default for TrackerConfig {
             appearance_floor: 8.0,
             appearance_px: 5.0,
             foreground_gate: 0.5,
-            match_cascade: false,
+            match_cascade: true,
             reid_frames: 150,
             reid_k: 3.0,
             weak_continues_tentative: true,

@@ -168,6 +168,7 @@ fn a_merged_region_gives_one_part_per_track_it_hides() {
         residuals: None,
         accepted,
         reason: String::new(),
+        beside: false,
         placement: None,
     };
     let mut found = FrameDetection {
@@ -205,4 +206,82 @@ fn a_merged_region_gives_one_part_per_track_it_hides() {
     ));
     assert_eq!(found.candidates.len(), 3);
     assert!(!found.candidates[2].accepted && found.candidates[2].region.placed.is_none());
+}
+
+/// A weak detection beside another region is accepted where the still background places it
+/// on an object of its own, and stays refused where it is a piece of its neighbour's object;
+/// the neighbour is placed as if it were not there.
+#[test]
+fn a_weak_detection_beside_another_stands_only_on_an_object_of_its_own() {
+    let (w, h) = (72, 40);
+    let centres = [(20.0, 20.0), (46.0, 20.0)];
+    let frame = |with: bool| {
+        let mut img = Image::zeros(3, h, w);
+        for y in 0..h {
+            for x in 0..w {
+                let on = with
+                    && centres
+                        .iter()
+                        .any(|&(cx, cy): &(f64, f64)| (x as f64 - cx).hypot(y as f64 - cy) <= 6.0);
+                for c in 0..3 {
+                    img.set(c, y, x, if on { 0.7 } else { 0.3 });
+                }
+            }
+        }
+        ColourFrame::new(&img)
+    };
+    let mut model = StillBackground::new(PlaceConfig::default()).expect("default settings");
+    for _ in 0..12 {
+        model.place(&frame(false), 0.0, &[]);
+    }
+    let region = |c: (f64, f64), pixels, weak| Region {
+        colour: None,
+        weak,
+        pixels,
+        centroid: c,
+        speed: 1.0,
+        direction: Some(0.0),
+        bbox: [10, 10, 60, 30],
+        mean_flow: (1.0, 0.0),
+        placed: None,
+        foreground: None,
+        aligned: weak.then_some((1.0, 0.0)),
+    };
+    let candidate = |r: Region, accepted: bool, beside: bool| Candidate {
+        region: r,
+        residuals: None,
+        accepted,
+        reason: "photometric".into(),
+        beside,
+        placement: None,
+    };
+    let mut found = FrameDetection {
+        background: GlobalMotion::zero(),
+        rejected_background: None,
+        background_explained: true,
+        threshold: 0.5,
+        change_level: None,
+        candidates: vec![
+            candidate(region((22.0, 21.0), 113, false), true, false),
+            candidate(region((43.0, 21.0), 113, true), false, true),
+            candidate(region((16.0, 20.0), 60, true), false, true),
+        ],
+    };
+    found.place(&mut model, &frame(true), &[]);
+    let c = &found.candidates;
+    assert_eq!(c.len(), 3);
+    for (k, want) in [(0, centres[0]), (1, centres[1])] {
+        assert!(c[k].accepted, "{:?}", c[k]);
+        let at = c[k].region.placed.expect("placed");
+        assert!((at.0 - want.0).hypot(at.1 - want.1) < 1.0, "{:?}", c[k]);
+    }
+    assert!(c[1].reason.ends_with("placed on an object of its own"));
+    assert!(!c[2].accepted && c[2].region.placed.is_none());
+    assert!(
+        c[2].reason.contains("not placed on an object of its own"),
+        "{}",
+        c[2].reason
+    );
+    assert!(c.iter().all(|c| !c.beside));
+    assert_eq!(found.accepted().len(), 2);
 }

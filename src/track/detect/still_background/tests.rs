@@ -390,7 +390,7 @@ fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_
         ((a.0 - 3.0, a.1), 1.2 * R),
         ((b.0 + 2.0, b.1 - 2.0), 1.2 * R),
     ]];
-    let out = m.place_or_split(&f, 0.0, &merged, &seeds);
+    let out = m.place_or_split(&f, 0.0, &merged, &seeds, &[]);
     match &out[0] {
         Placement::Split { to } => {
             // Each centre on its own object, nearer it than its seed (3 and 2.8 px off):
@@ -416,7 +416,7 @@ fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_
     let (mut m, f) = model_at(n, moving);
     let truth = moving(n);
     let one = [(truth, (1.5 * std::f64::consts::PI * R * R) as usize)];
-    let out = m.place_or_split(&f, 0.0, &one, &[vec![(truth, R)]]);
+    let out = m.place_or_split(&f, 0.0, &one, &[vec![(truth, R)]], &[]);
     assert!(matches!(out[0], Placement::Moved { .. }), "{out:?}");
     // Two seeds on one object (one hides the other): both find the same centre, and the
     // region is not split.
@@ -425,7 +425,7 @@ fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_
         ((truth.0 - 3.0, truth.1), R),
         ((truth.0 + 3.0, truth.1), R),
     ]];
-    let out = m.place_or_split(&f, 0.0, &one, &seeds);
+    let out = m.place_or_split(&f, 0.0, &one, &seeds, &[]);
     assert!(!matches!(out[0], Placement::Split { .. }), "{out:?}");
     // Nor is it with the split turned off.
     let cfg = PlaceConfig {
@@ -437,6 +437,60 @@ fn a_merged_region_is_split_where_the_frame_shows_both_objects_and_not_where_it_
         ((a.0 - 3.0, a.1), 1.2 * R),
         ((b.0 + 2.0, b.1 - 2.0), 1.2 * R),
     ]];
-    let out = m.place_or_split(&f, 0.0, &merged, &seeds);
+    let out = m.place_or_split(&f, 0.0, &merged, &seeds, &[]);
     assert!(!matches!(out[0], Placement::Split { .. }), "{out:?}");
+}
+
+#[test]
+fn a_pending_region_stands_only_on_an_object_of_its_own() {
+    // Two discs of radius 8 pass each other 24 px apart (8 px of background between them).
+    let n = 34;
+    let area = (2.0 * std::f64::consts::PI * R * R) as usize;
+    let (mut m, f, [a, b]) = passing(PlaceConfig::default(), n, 26.0, 50.0);
+    // A weak detection on the second disc, beside the first disc's region: a mover of its
+    // own, placed.
+    let regions = [((a.0, a.1 + 3.0), area), ((b.0, b.1 - 3.0), area)];
+    let out = m.place_or_split(&f, 0.0, &regions, &[], &[false, true]);
+    for (p, want) in out.iter().zip([a, b]) {
+        match p {
+            Placement::Moved { to } => {
+                assert!((to.0 - want.0).hypot(to.1 - want.1) < 1.5, "{out:?}")
+            }
+            other => panic!("not placed: {other:?}"),
+        }
+    }
+    // A weak detection of half the area on the first disc's own object (a piece of it): the
+    // two end on one blob, so it is refused, and the first region is placed without it (it
+    // would keep its flow centroid beside an accepted region of that size).
+    let (mut m, f, [a, _]) = passing(PlaceConfig::default(), n, 26.0, 50.0);
+    let regions = [((a.0 - 3.0, a.1), area), ((a.0 + 5.0, a.1), area / 2)];
+    let out = m.place_or_split(&f, 0.0, &regions, &[], &[false, true]);
+    match &out[0] {
+        Placement::Moved { to } => assert!((to.0 - a.0).hypot(to.1 - a.1) < 1.5, "{out:?}"),
+        other => panic!("the object's own region not placed: {other:?}"),
+    }
+    assert!(
+        matches!(&out[1], Placement::Kept(w) if w.contains("not placed on an object of its own")),
+        "{out:?}"
+    );
+    // As an accepted region, the piece keeps both at their flow centroids.
+    let (mut m, f, _) = passing(PlaceConfig::default(), n, 26.0, 50.0);
+    let out = m.place_or_split(&f, 0.0, &regions, &[], &[]);
+    assert!(
+        out.iter().all(|p| matches!(p, Placement::Kept(_))),
+        "{out:?}"
+    );
+    // Where nothing is placed (the camera moves), a pending region is refused too.
+    let (mut m, f, [_, b]) = passing(PlaceConfig::default(), n, 26.0, 50.0);
+    let out = m.place_or_split(&f, 3.0, &[(b, area)], &[], &[true]);
+    assert!(matches!(&out[0], Placement::Kept(_)), "{out:?}");
+    // A refused pending region masks nothing in the frame's background; a placed one does.
+    let placed = [
+        Placement::Moved { to: a },
+        Placement::Kept("refused".into()),
+    ];
+    let got = covered(&regions, &[], &placed, 1.5, |i| i == 1);
+    assert_eq!(got.len(), 1);
+    assert_eq!(got[0].0, a);
+    assert_eq!(covered(&regions, &[], &placed, 1.5, |_| false).len(), 2);
 }
