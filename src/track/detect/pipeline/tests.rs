@@ -1,5 +1,5 @@
 //! The detection pipeline's tests: the change test under flow jitter, the alignment, a merged
-//! region split between tracks.
+//! region split between tracks, a weak detection beside another region.
 
 use super::*;
 use crate::track::detect::still_background::PlaceConfig;
@@ -124,35 +124,37 @@ fn the_alignment_gives_an_accepted_region_the_frames_motion() {
     }
 }
 
-/// A region over two confirmed tracks' predictions, where the frame shows an object near
-/// each, becomes two accepted parts, each placed on its object and moving as its track;
-/// a rejected candidate stays as it was.
-#[test]
-fn a_merged_region_gives_one_part_per_track_it_hides() {
-    let (w, h) = (64, 40);
-    let centres = [(20.0, 20.0), (36.0, 20.0)];
-    let frame = |with: bool| {
-        let mut img = Image::zeros(3, h, w);
-        for y in 0..h {
-            for x in 0..w {
-                let on = with
-                    && centres
-                        .iter()
-                        .any(|&(cx, cy): &(f64, f64)| (x as f64 - cx).hypot(y as f64 - cy) <= 6.0);
-                for c in 0..3 {
-                    img.set(c, y, x, if on { 0.7 } else { 0.3 });
-                }
+/// A `w` × `h` grey frame (0.3) with, when `with`, discs of radius 6 (0.7) at `centres`.
+fn flat_discs(w: usize, h: usize, centres: &[(f64, f64)], with: bool) -> ColourFrame {
+    let mut img = Image::zeros(3, h, w);
+    for y in 0..h {
+        for x in 0..w {
+            let on = with
+                && centres
+                    .iter()
+                    .any(|&(cx, cy)| (x as f64 - cx).hypot(y as f64 - cy) <= 6.0);
+            for c in 0..3 {
+                img.set(c, y, x, if on { 0.7 } else { 0.3 });
             }
         }
-        ColourFrame::new(&img)
-    };
+    }
+    ColourFrame::new(&img)
+}
+
+/// A still background model that has seen 12 frames of `empty`.
+fn still_model(empty: &ColourFrame) -> StillBackground {
     let mut model = StillBackground::new(PlaceConfig::default()).expect("default settings");
     for _ in 0..12 {
-        model.place(&frame(false), 0.0, &[]);
+        model.place(empty, 0.0, &[]);
     }
-    let region = |c: (f64, f64), pixels| Region {
+    model
+}
+
+/// A region at `c` of `pixels`, moving 0.2 px right (weak: its aligned motion too).
+fn blob(c: (f64, f64), pixels: usize, weak: bool) -> Region {
+    Region {
         colour: None,
-        weak: false,
+        weak,
         pixels,
         centroid: c,
         speed: 0.2,
@@ -161,27 +163,45 @@ fn a_merged_region_gives_one_part_per_track_it_hides() {
         mean_flow: (0.2, 0.0),
         placed: None,
         foreground: None,
-        aligned: None,
-    };
-    let candidate = |r: Region, accepted: bool| Candidate {
-        region: r,
+        aligned: weak.then_some((0.2, 0.0)),
+    }
+}
+
+fn candidate(region: Region, accepted: bool, beside: bool) -> Candidate {
+    Candidate {
+        region,
         residuals: None,
         accepted,
-        reason: String::new(),
-        beside: false,
+        reason: "photometric".into(),
+        beside,
         placement: None,
-    };
-    let mut found = FrameDetection {
+    }
+}
+
+/// One frame's detection of `candidates` on a still background.
+fn detection(candidates: Vec<Candidate>) -> FrameDetection {
+    FrameDetection {
         background: GlobalMotion::zero(),
         rejected_background: None,
         background_explained: true,
         threshold: 0.5,
         change_level: None,
-        candidates: vec![
-            candidate(region((28.0, 20.0), 600), true),
-            candidate(region((55.0, 35.0), 30), false),
-        ],
-    };
+        candidates,
+    }
+}
+
+/// A region over two confirmed tracks' predictions, where the frame shows an object near
+/// each, becomes two accepted parts, each placed on its object and moving as its track;
+/// a rejected candidate stays as it was.
+#[test]
+fn a_merged_region_gives_one_part_per_track_it_hides() {
+    let (w, h) = (64, 40);
+    let centres = [(20.0, 20.0), (36.0, 20.0)];
+    let mut model = still_model(&flat_discs(w, h, &centres, false));
+    let mut found = detection(vec![
+        candidate(blob((28.0, 20.0), 600, false), true, false),
+        candidate(blob((55.0, 35.0), 30, false), false, false),
+    ]);
     let seed = |at, v| Seed {
         at,
         radius: 7.0,
@@ -192,7 +212,7 @@ fn a_merged_region_gives_one_part_per_track_it_hides() {
         seed((38.0, 19.0), -1.5),
         seed((5.0, 5.0), 0.0),
     ];
-    found.place(&mut model, &frame(true), &seeds);
+    found.place(&mut model, &flat_discs(w, h, &centres, true), &seeds);
     let parts = found.accepted();
     assert_eq!(parts.len(), 2, "{:?}", found.candidates);
     for ((p, want), v) in parts.iter().zip(centres).zip([1.5, -1.5]) {
@@ -215,59 +235,13 @@ fn a_merged_region_gives_one_part_per_track_it_hides() {
 fn a_weak_detection_beside_another_stands_only_on_an_object_of_its_own() {
     let (w, h) = (72, 40);
     let centres = [(20.0, 20.0), (46.0, 20.0)];
-    let frame = |with: bool| {
-        let mut img = Image::zeros(3, h, w);
-        for y in 0..h {
-            for x in 0..w {
-                let on = with
-                    && centres
-                        .iter()
-                        .any(|&(cx, cy): &(f64, f64)| (x as f64 - cx).hypot(y as f64 - cy) <= 6.0);
-                for c in 0..3 {
-                    img.set(c, y, x, if on { 0.7 } else { 0.3 });
-                }
-            }
-        }
-        ColourFrame::new(&img)
-    };
-    let mut model = StillBackground::new(PlaceConfig::default()).expect("default settings");
-    for _ in 0..12 {
-        model.place(&frame(false), 0.0, &[]);
-    }
-    let region = |c: (f64, f64), pixels, weak| Region {
-        colour: None,
-        weak,
-        pixels,
-        centroid: c,
-        speed: 1.0,
-        direction: Some(0.0),
-        bbox: [10, 10, 60, 30],
-        mean_flow: (1.0, 0.0),
-        placed: None,
-        foreground: None,
-        aligned: weak.then_some((1.0, 0.0)),
-    };
-    let candidate = |r: Region, accepted: bool, beside: bool| Candidate {
-        region: r,
-        residuals: None,
-        accepted,
-        reason: "photometric".into(),
-        beside,
-        placement: None,
-    };
-    let mut found = FrameDetection {
-        background: GlobalMotion::zero(),
-        rejected_background: None,
-        background_explained: true,
-        threshold: 0.5,
-        change_level: None,
-        candidates: vec![
-            candidate(region((22.0, 21.0), 113, false), true, false),
-            candidate(region((43.0, 21.0), 113, true), false, true),
-            candidate(region((16.0, 20.0), 60, true), false, true),
-        ],
-    };
-    found.place(&mut model, &frame(true), &[]);
+    let mut model = still_model(&flat_discs(w, h, &centres, false));
+    let mut found = detection(vec![
+        candidate(blob((22.0, 21.0), 113, false), true, false),
+        candidate(blob((43.0, 21.0), 113, true), false, true),
+        candidate(blob((16.0, 20.0), 60, true), false, true),
+    ]);
+    found.place(&mut model, &flat_discs(w, h, &centres, true), &[]);
     let c = &found.candidates;
     assert_eq!(c.len(), 3);
     for (k, want) in [(0, centres[0]), (1, centres[1])] {
