@@ -117,9 +117,12 @@ impl FrameDetection {
         // A pending detection hides no track: it is split between none.
         let hidden: Vec<Vec<Seed>> = wanted
             .iter()
-            .map(|c| match c.beside {
-                true => Vec::new(),
-                false => split::covered(&c.region, seeds),
+            .map(|c| {
+                if c.beside {
+                    Vec::new()
+                } else {
+                    split::covered(&c.region, seeds)
+                }
             })
             .collect();
         let at: Vec<Vec<((f64, f64), f64)>> = hidden
