@@ -5,9 +5,8 @@
 //! recently first, the tentative ones last), then the weak ones (`track::detect::retry`) for
 //! the tracks left, confirmed or (`TrackerConfig::weak_continues_tentative`) tentative
 //! (ByteTrack's low-score detections, which go to confirmed tracks only), a second chance by
-//! distance alone for
-//! confirmed tracks still without a detection (ByteTrack's second association), and the
-//! merges, regions that hide a second confirmed track's object. The two later rounds leave a
+//! distance alone for confirmed tracks still without a detection (ByteTrack's second
+//! association), and the merges, regions that hide a second confirmed track's object. The two later rounds leave a
 //! region that overlaps one taken in the first: it is the rest of that track's object.
 
 use super::appearance::Appearance;
