@@ -1,8 +1,8 @@
 //! FlyingChairs-like procedural scenes: a textured background under a small global affine
 //! motion and textured blob sprites under independent translations, rotations and scalings,
 //! with the variety real cameras see as options: photographic textures, motions from sub-pixel
-//! to 100+ px, still backgrounds and objects, small sprites, dark and low-contrast scenes, and a
-//! road under a camera driving ahead with boxes standing on it (`chairs::road`).
+//! to 100+ px, still backgrounds and objects, small and flat sprites, dark and low-contrast
+//! scenes, and a road under a camera driving ahead with boxes standing on it (`chairs::road`).
 
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -61,6 +61,10 @@ pub struct ChairsConfig {
     pub small_sprites: [usize; 2],
     /// Radius of the small sprites, pixels.
     pub small_sprite_radius_px: [f64; 2],
+    /// Share of sprites (small ones too) painted one flat colour, each with 0–2 flat marks
+    /// that move with it (a window, a decal): objects whose inside has nothing to match, so
+    /// their motion must be read from their outline and marks (Note S12's rocket and discs).
+    pub flat_sprites: f64,
     /// Gain applied to every texture before the camera, drawn per sample.
     pub brightness: [f64; 2],
     /// Contrast about mid-grey applied to every texture before the camera, drawn per sample.
@@ -127,6 +131,7 @@ impl Default for ChairsConfig {
             plain_background: 0.0,
             small_sprites: [0, 0],
             small_sprite_radius_px: [2.0, 10.0],
+            flat_sprites: 0.0,
             brightness: [1.0, 1.0],
             contrast: [1.0, 1.0],
             ground: 0.0,
@@ -202,6 +207,7 @@ impl ChairsConfig {
             ("scene.still_background", self.still_background),
             ("scene.still_sprites", self.still_sprites),
             ("scene.plain_background", self.plain_background),
+            ("scene.flat_sprites", self.flat_sprites),
             ("scene.ground", self.ground),
         ] {
             if !(0.0..=1.0).contains(&v) {
@@ -252,6 +258,7 @@ impl ChairsConfig {
             || self.still_sprites > 0.0
             || self.plain_background > 0.0
             || self.small_sprites[1] > 0
+            || self.flat_sprites > 0.0
             || self.brightness != [1.0, 1.0]
             || self.contrast != [1.0, 1.0]
             || self.ground > 0.0
@@ -358,6 +365,7 @@ impl ChairsConfig {
                     )
                 })
                 .collect();
+            let spread: f64 = harmonics.iter().map(|h| h.1).sum();
             let shape = Shape::Blob { radius, harmonics };
             let bound = shape.bound_radius();
             let size = (2.0 * bound * 1.3).ceil().max(4.0) as usize + 2;
@@ -368,24 +376,43 @@ impl ChairsConfig {
             let dtheta = r.random_range(-1.0..=1.0) * self.max_rotation_deg.to_radians();
             let ds = uniform(r, self.scale_change);
             let still = self.still_sprites > 0.0 && v.random::<f64>() < self.still_sprites;
-            let tex = texture(&mut v, false, tex_seed, size, size, (2.0 * radius) as f32);
+            let flat = self.flat_sprites > 0.0 && v.random::<f64>() < self.flat_sprites;
+            let tex = texture(&mut v, flat, tex_seed, size, size, (2.0 * radius) as f32);
             let pose1 = Affine::pose(x, y, theta, s);
+            let pose2 = if still {
+                pose1
+            } else {
+                Affine::pose(x + dx, y + dy, theta + dtheta, s * ds)
+            };
             layers.push(Layer {
                 shape,
                 fill: Fill::Texture {
                     image: Arc::new(tex),
                     origin: (size as f64 / 2.0, size as f64 / 2.0),
                 },
-                poses: [
-                    pose1.into(),
-                    if still {
-                        pose1
-                    } else {
-                        Affine::pose(x + dx, y + dy, theta + dtheta, s * ds)
-                    }
-                    .into(),
-                ],
+                poses: [pose1.into(), pose2.into()],
             });
+            if flat {
+                // Marks: flat discs inside the blob's inner circle (where every direction
+                // is still inside it), riding on the sprite's poses.
+                let inner = radius * (1.0 - spread);
+                for _ in 0..v.random_range(0..=2usize) {
+                    let mark = inner * v.random_range(0.1..0.35);
+                    let at = (inner - mark) * v.random::<f64>().sqrt();
+                    let phi = v.random_range(0.0..2.0 * PI);
+                    let offset = Affine::translation(at * phi.cos(), at * phi.sin());
+                    let side = (2.0 * mark).ceil() as usize + 2;
+                    let tex = texture(&mut v, true, 0, side, side, 1.0);
+                    layers.push(Layer {
+                        shape: Shape::Disc { radius: mark },
+                        fill: Fill::Texture {
+                            image: Arc::new(tex),
+                            origin: (side as f64 / 2.0, side as f64 / 2.0),
+                        },
+                        poses: [pose1.compose(&offset).into(), pose2.compose(&offset).into()],
+                    });
+                }
+            }
         }
         let draw = ChairsDraw {
             still_background,

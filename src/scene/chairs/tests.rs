@@ -1,5 +1,5 @@
 //! The chairs scenes' tests: determinism, motion, the options of real cameras (photos, laws,
-//! still and plain backgrounds, small sprites, tone, the ground plane), validation.
+//! still and plain backgrounds, small and flat sprites, tone, the ground plane), validation.
 
 use super::*;
 use std::path::Path;
@@ -181,6 +181,75 @@ fn small_sprites_and_photo_textures_are_recorded() {
     );
 }
 
+/// Flat sprites: every sprite's texture is one colour, each mark lies inside its sprite in
+/// frame 1 and moves exactly as the sprite's own point beneath it (so the flow, which each
+/// layer's poses make exact, is the sprite's there); without the knob the same seed draws the sprites it always drew.
+#[test]
+fn flat_sprites_are_one_colour_and_their_marks_ride_on_them() {
+    let base = ChairsConfig {
+        width: 160,
+        height: 120,
+        sprites: [3, 3],
+        sprite_radius: [0.15, 0.25],
+        small_sprites: [2, 2],
+        small_sprite_radius_px: [6.0, 10.0],
+        still_background: 1.0,
+        ..ChairsConfig::default()
+    };
+    let flat = ChairsConfig {
+        flat_sprites: 1.0,
+        ..base.clone()
+    };
+    assert!(flat.has_variety());
+    let mut marks = 0;
+    for seed in 0..12 {
+        let scene = flat.build(seed).unwrap();
+        // The large sprites' geometry is the plain config's (their stream is not touched).
+        let blobs = |s: &LayeredScene| -> Vec<_> {
+            s.records()
+                .into_iter()
+                .filter(|r| matches!(r.shape, Shape::Blob { .. }))
+                .take(3)
+                .map(|r| r.poses)
+                .collect()
+        };
+        assert_eq!(blobs(&base.build(seed).unwrap()), blobs(&scene));
+        let mut sprite: Option<(usize, f64)> = None;
+        for (i, layer) in scene.layers.iter().enumerate().skip(1) {
+            let Fill::Texture { image, .. } = &layer.fill else {
+                panic!("seed {seed}: layer {i} is not a texture");
+            };
+            for c in 0..3 {
+                let plane = image.plane(c);
+                assert!(
+                    plane.iter().all(|&v| v == plane[0]),
+                    "seed {seed}: layer {i}"
+                );
+            }
+            match &layer.shape {
+                Shape::Blob { radius, .. } => sprite = Some((i, *radius)),
+                Shape::Disc { radius: mark } => {
+                    marks += 1;
+                    let (s, _) = sprite.expect("a mark follows its sprite");
+                    let body = &scene.layers[s];
+                    for k in 0..16 {
+                        let a = k as f64 * std::f64::consts::PI / 8.0;
+                        let (lx, ly) = (mark * a.cos(), mark * a.sin());
+                        let p1 = layer.poses[0].apply(lx, ly).unwrap();
+                        let q = body.poses[0].inverse().unwrap().apply(p1.0, p1.1).unwrap();
+                        assert!(body.shape.contains(q.0, q.1), "seed {seed}: mark outside");
+                        let moved = body.poses[1].apply(q.0, q.1).unwrap();
+                        let p2 = layer.poses[1].apply(lx, ly).unwrap();
+                        assert!((moved.0 - p2.0).hypot(moved.1 - p2.1) < 1e-9);
+                    }
+                }
+                other => panic!("seed {seed}: unexpected shape {other:?}"),
+            }
+        }
+    }
+    assert!(marks >= 12, "{marks} marks in 12 scenes of 5 sprites");
+}
+
 #[test]
 fn bad_config_is_rejected() {
     assert!(
@@ -202,6 +271,14 @@ fn bad_config_is_rejected() {
     assert!(
         ChairsConfig {
             width: 0,
+            ..small()
+        }
+        .validate()
+        .is_err()
+    );
+    assert!(
+        ChairsConfig {
+            flat_sprites: 1.5,
             ..small()
         }
         .validate()
