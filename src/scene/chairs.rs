@@ -365,10 +365,6 @@ impl ChairsConfig {
                     )
                 })
                 .collect();
-            let spread: f64 = harmonics.iter().map(|h| h.1).sum();
-            let shape = Shape::Blob { radius, harmonics };
-            let bound = shape.bound_radius();
-            let size = (2.0 * bound * 1.3).ceil().max(4.0) as usize + 2;
             let tex_seed = r.random();
             let (x, y) = (r.random_range(-0.1..1.1) * w, r.random_range(-0.1..1.1) * h);
             let (theta, s) = (r.random_range(0.0..2.0 * PI), r.random_range(0.85..1.15));
@@ -377,6 +373,13 @@ impl ChairsConfig {
             let ds = uniform(r, self.scale_change);
             let still = self.still_sprites > 0.0 && v.random::<f64>() < self.still_sprites;
             let flat = self.flat_sprites > 0.0 && v.random::<f64>() < self.flat_sprites;
+            let (shape, marks) = if flat {
+                let f = flat::draw(radius, &harmonics, &mut v);
+                (f.shape, f.marks)
+            } else {
+                (Shape::Blob { radius, harmonics }, Vec::new())
+            };
+            let size = (2.0 * shape.bound_radius() * 1.3).ceil().max(4.0) as usize + 2;
             let tex = texture(&mut v, flat, tex_seed, size, size, (2.0 * radius) as f32);
             let pose1 = Affine::pose(x, y, theta, s);
             let pose2 = if still {
@@ -392,26 +395,19 @@ impl ChairsConfig {
                 },
                 poses: [pose1.into(), pose2.into()],
             });
-            if flat {
-                // Marks: flat discs inside the blob's inner circle (where every direction
-                // is still inside it), riding on the sprite's poses.
-                let inner = radius * (1.0 - spread);
-                for _ in 0..v.random_range(0..=2usize) {
-                    let mark = inner * v.random_range(0.1..0.35);
-                    let at = (inner - mark) * v.random::<f64>().sqrt();
-                    let phi = v.random_range(0.0..2.0 * PI);
-                    let offset = Affine::translation(at * phi.cos(), at * phi.sin());
-                    let side = (2.0 * mark).ceil() as usize + 2;
-                    let tex = texture(&mut v, true, 0, side, side, 1.0);
-                    layers.push(Layer {
-                        shape: Shape::Disc { radius: mark },
-                        fill: Fill::Texture {
-                            image: Arc::new(tex),
-                            origin: (side as f64 / 2.0, side as f64 / 2.0),
-                        },
-                        poses: [pose1.compose(&offset).into(), pose2.compose(&offset).into()],
-                    });
-                }
+            // A flat sprite's marks ride on its poses.
+            for (mark, (cx, cy)) in marks {
+                let offset = Affine::translation(cx, cy);
+                let side = (2.0 * mark).ceil() as usize + 2;
+                let tex = texture(&mut v, true, 0, side, side, 1.0);
+                layers.push(Layer {
+                    shape: Shape::Disc { radius: mark },
+                    fill: Fill::Texture {
+                        image: Arc::new(tex),
+                        origin: (side as f64 / 2.0, side as f64 / 2.0),
+                    },
+                    poses: [pose1.compose(&offset).into(), pose2.compose(&offset).into()],
+                });
             }
         }
         let draw = ChairsDraw {
@@ -476,6 +472,7 @@ fn disc_sample(r: &mut rng::Rng, max: f64) -> (f64, f64) {
     (rad * phi.cos(), rad * phi.sin())
 }
 
+mod flat;
 mod road;
 #[cfg(test)]
 mod tests;

@@ -73,7 +73,7 @@ impl Shape {
 }
 
 /// A blob's boundary r(θ) = radius·(1 + Σ_k amp_k cos(k·θ + phase_k)).
-fn blob_boundary(radius: f64, harmonics: &[(u32, f64, f64)], theta: f64) -> f64 {
+pub(crate) fn blob_boundary(radius: f64, harmonics: &[(u32, f64, f64)], theta: f64) -> f64 {
     radius
         * (1.0
             + harmonics

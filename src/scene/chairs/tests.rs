@@ -181,7 +181,7 @@ fn small_sprites_and_photo_textures_are_recorded() {
     );
 }
 
-/// Flat sprites: every sprite's texture is one colour, each mark lies inside its sprite in
+/// Flat sprites: every sprite's texture is one colour, some are long, each mark lies inside its sprite in
 /// frame 1 and moves exactly as the sprite's own point beneath it (so the flow, which each
 /// layer's poses make exact, is the sprite's there); without the knob the same seed draws the sprites it always drew.
 #[test]
@@ -201,20 +201,20 @@ fn flat_sprites_are_one_colour_and_their_marks_ride_on_them() {
         ..base.clone()
     };
     assert!(flat.has_variety());
-    let mut marks = 0;
+    let (mut marks, mut longest) = (0, 0.0f64);
     for seed in 0..12 {
         let scene = flat.build(seed).unwrap();
         // The large sprites' geometry is the plain config's (their stream is not touched).
         let blobs = |s: &LayeredScene| -> Vec<_> {
             s.records()
                 .into_iter()
-                .filter(|r| matches!(r.shape, Shape::Blob { .. }))
+                .filter(|r| matches!(r.shape, Shape::Blob { .. } | Shape::Polygon { .. }))
                 .take(3)
                 .map(|r| r.poses)
                 .collect()
         };
         assert_eq!(blobs(&base.build(seed).unwrap()), blobs(&scene));
-        let mut sprite: Option<(usize, f64)> = None;
+        let mut sprite: Option<usize> = None;
         for (i, layer) in scene.layers.iter().enumerate().skip(1) {
             let Fill::Texture { image, .. } = &layer.fill else {
                 panic!("seed {seed}: layer {i} is not a texture");
@@ -227,10 +227,17 @@ fn flat_sprites_are_one_colour_and_their_marks_ride_on_them() {
                 );
             }
             match &layer.shape {
-                Shape::Blob { radius, .. } => sprite = Some((i, *radius)),
+                Shape::Polygon { vertices } => {
+                    let extent = |f: fn(&(f64, f64)) -> f64| {
+                        let v = vertices.iter().map(f);
+                        v.clone().fold(f64::MIN, f64::max) - v.fold(f64::MAX, f64::min)
+                    };
+                    longest = longest.max(extent(|p| p.0) / extent(|p| p.1));
+                    sprite = Some(i);
+                }
                 Shape::Disc { radius: mark } => {
                     marks += 1;
-                    let (s, _) = sprite.expect("a mark follows its sprite");
+                    let s = sprite.expect("a mark follows its sprite");
                     let body = &scene.layers[s];
                     for k in 0..16 {
                         let a = k as f64 * std::f64::consts::PI / 8.0;
@@ -248,6 +255,8 @@ fn flat_sprites_are_one_colour_and_their_marks_ride_on_them() {
         }
     }
     assert!(marks >= 12, "{marks} marks in 12 scenes of 5 sprites");
+    // Stretched up to 4:1 along their local x (the blob's own outline varies too).
+    assert!(longest > 2.5 && longest < 6.0, "longest {longest}");
 }
 
 #[test]
