@@ -61,9 +61,10 @@ pub struct ChairsConfig {
     pub small_sprites: [usize; 2],
     /// Radius of the small sprites, pixels.
     pub small_sprite_radius_px: [f64; 2],
-    /// Share of sprites (small ones too) painted one flat colour, each with 0–2 flat marks
-    /// that move with it (a window, a decal): objects whose inside has nothing to match, so
-    /// their motion must be read from their outline and marks (Note S12's rocket and discs).
+    /// Share of sprites (small ones too) painted one flat colour, stretched 1–4× along their
+    /// own axis, each with 0–2 flat marks that move with it (a window, a decal): objects whose
+    /// inside has nothing to match, so their motion must be read from their ends and marks
+    /// (Note S12's rocket and discs; `chairs::flat`).
     pub flat_sprites: f64,
     /// Gain applied to every texture before the camera, drawn per sample.
     pub brightness: [f64; 2],

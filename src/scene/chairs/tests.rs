@@ -181,9 +181,10 @@ fn small_sprites_and_photo_textures_are_recorded() {
     );
 }
 
-/// Flat sprites: every sprite's texture is one colour, some are long, each mark lies inside its sprite in
-/// frame 1 and moves exactly as the sprite's own point beneath it (so the flow, which each
-/// layer's poses make exact, is the sprite's there); without the knob the same seed draws the sprites it always drew.
+/// Flat sprites: every sprite's texture is one colour, some are long, each mark lies inside
+/// its sprite in frame 1 and moves exactly as the sprite's own point beneath it (so the flow,
+/// which each layer's poses make exact, is the sprite's there); the large sprites' poses are
+/// those the same seed draws without the knob.
 #[test]
 fn flat_sprites_are_one_colour_and_their_marks_ride_on_them() {
     let base = ChairsConfig {
