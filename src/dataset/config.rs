@@ -111,7 +111,10 @@ impl GeneratorConfig {
                     format!("must be 1 or 3, got {channels}"),
                 ))
             }
-            SceneSpec::Disc { radius, .. } => crate::scene::patterns::disc(*radius, 1).map(|_| ()),
+            SceneSpec::Disc { radius, .. } => {
+                crate::scene::patterns::disc(*radius, 1, crate::scene::patterns::S12_SIZE)
+                    .map(|_| ())
+            }
             _ => Ok(()),
         }
     }

@@ -222,8 +222,12 @@ impl Generator {
                 Ok(r)
             }
             SceneSpec::Movers(m) => layered(m.scene(seed)?),
-            SceneSpec::Rocket { step, channels } => layered(patterns::rocket(*step, *channels)),
-            SceneSpec::Disc { radius, channels } => layered(patterns::disc(*radius, *channels)?),
+            SceneSpec::Rocket { step, channels } => {
+                layered(patterns::rocket(*step, *channels, patterns::S12_SIZE)?)
+            }
+            SceneSpec::Disc { radius, channels } => {
+                layered(patterns::disc(*radius, *channels, patterns::S12_SIZE)?)
+            }
             SceneSpec::Dataset { .. } => {
                 let pair = &self.pairs[index];
                 let (a, b) = io::read_image_pair(&pair.img1, &pair.img2)?;

@@ -1,7 +1,8 @@
 //! Note S12's detection limits through the network (Fig. S10 a–g): the rocket moved 3 px up,
-//! left and up-right and discs of radius 8, 5 and 3 px moved 15 px right, 701×701, through the
-//! metalens camera, then MMS flow; scored inside the true moving region (magnitude, direction,
-//! share detected as moving) and outside it (false-motion area).
+//! left and up-right and discs of radius 8, 5 and 3 px moved 15 px right, 701×701 (or the same
+//! movers centred in frames of other sizes), through the metalens camera, then MMS flow; scored
+//! inside the true moving region (magnitude, direction, share detected as moving) and outside
+//! it (false-motion area).
 
 use std::path::Path;
 
@@ -40,10 +41,18 @@ impl LimitCase {
         }
     }
 
-    fn scene(&self) -> Result<LayeredScene> {
+    /// The case's name in a `side`-pixel frame: Note S12's own name in its 701×701 frame.
+    pub fn name_in(&self, side: usize) -> String {
+        match side {
+            patterns::S12_SIZE => self.name(),
+            _ => format!("{} in {side}×{side}", self.name()),
+        }
+    }
+
+    fn scene(&self, side: usize) -> Result<LayeredScene> {
         match self {
-            LimitCase::Rocket(s) => Ok(patterns::rocket(*s, 3)),
-            LimitCase::Disc(r) => patterns::disc(*r, 3),
+            LimitCase::Rocket(s) => patterns::rocket(*s, 3, side),
+            LimitCase::Disc(r) => patterns::disc(*r, 3, side),
         }
     }
 }
@@ -53,6 +62,9 @@ impl LimitCase {
 #[serde(deny_unknown_fields, default)]
 pub struct LimitsConfig {
     pub cases: Vec<LimitCase>,
+    /// Frame sides, px: every case is drawn centred in each (Note S12's 701 by default). The
+    /// movers keep their size, so a larger frame only adds plain background around them.
+    pub frames: Vec<usize>,
     pub camera: CameraConfig,
     /// Seed of the camera noise.
     pub seed: u64,
@@ -80,6 +92,7 @@ impl Default for LimitsConfig {
                 LimitCase::Disc(5.0),
                 LimitCase::Disc(3.0),
             ],
+            frames: vec![patterns::S12_SIZE],
             camera: CameraConfig::default(),
             seed: 0,
             iters: vec![4, 12],
@@ -122,14 +135,15 @@ impl LimitsConfig {
         if self.cases.is_empty() {
             return Err(Error::invalid("cases", "empty list"));
         }
-        for c in &self.cases {
-            if let LimitCase::Disc(r) = c
-                && !(r.is_finite() && *r > 0.0 && *r < 300.0)
-            {
-                return Err(Error::invalid(
-                    "cases",
-                    format!("disc radius must be in (0, 300), got {r}"),
-                ));
+        if self.frames.is_empty() {
+            return Err(Error::invalid("frames", "empty list"));
+        }
+        // Every case must fit every frame: drawing each checks the sizes (cheaply: no render).
+        for &side in &self.frames {
+            for c in &self.cases {
+                c.scene(side).map_err(|e| {
+                    Error::invalid("cases", format!("{} in {side} px: {e}", c.name()))
+                })?;
             }
         }
         if self.iters.is_empty() || self.iters.iter().any(|&n| n == 0 || n > 256) {
@@ -185,10 +199,20 @@ pub fn run(cfg: &LimitsConfig, predictor: &Predictor) -> Result<Vec<CaseRun>> {
     let (psf, _) = psf_source::load(&cfg.camera.psf)?;
     let camera = Camera::new(&cfg.camera, psf)?;
     let mut runs = Vec::new();
-    for (k, case) in cfg.cases.iter().enumerate() {
-        let scene = case.scene()?;
+    let drawn = cfg
+        .cases
+        .iter()
+        .enumerate()
+        .flat_map(|(k, case)| cfg.frames.iter().map(move |&side| (k, case, side)));
+    for (k, case, side) in drawn {
+        let scene = case.scene(side)?;
         let truth = scene.flow()?;
-        let seed = rng::derive(cfg.seed, &[k as u64]);
+        // The noise of Note S12's own frames is seeded as it always was (the published tables
+        // stay reproducible); other sizes get their own.
+        let seed = match side {
+            patterns::S12_SIZE => rng::derive(cfg.seed, &[k as u64]),
+            _ => rng::derive(cfg.seed, &[k as u64, side as u64]),
+        };
         let frames = [
             camera.apply(
                 &scene.render(0)?,
@@ -204,7 +228,7 @@ pub fn run(cfg: &LimitsConfig, predictor: &Predictor) -> Result<Vec<CaseRun>> {
             let t = std::time::Instant::now();
             let est = predictor.predict(&frames[0], &frames[1], iters)?;
             let ms = t.elapsed().as_secs_f64() * 1e3;
-            scores.push(score(cfg, &case.name(), iters, &truth, &est, ms));
+            scores.push(score(cfg, &case.name_in(side), iters, &truth, &est, ms));
             estimates.push(est);
         }
         runs.push(CaseRun {

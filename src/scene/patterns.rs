@@ -13,6 +13,24 @@ use crate::types::Image;
 /// Frame size of the Note S12 tests.
 pub const S12_SIZE: usize = 701;
 
+/// Frame sides the test patterns may be drawn in: from the smallest that holds the rocket and
+/// its step (its outline spans 190 × 90 px) to the largest a detection-limit sweep needs.
+pub const SIDES: std::ops::RangeInclusive<usize> = 200..=4096;
+
+fn check_side(side: usize) -> Result<()> {
+    if SIDES.contains(&side) {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "frame side",
+        format!(
+            "must be {} to {} px, got {side}",
+            SIDES.start(),
+            SIDES.end()
+        ),
+    ))
+}
+
 /// Direction of the rocket's 3-pixel step (Fig. S10a–c).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -63,10 +81,12 @@ fn dark_background(channels: usize) -> Layer {
 }
 
 /// The rocket of Fig. S10a–c: a bright rocket with a darker window on a dark background,
-/// centred in a 701×701 frame, moved by 3 px in `step`'s direction.
-pub fn rocket(step: RocketStep, channels: usize) -> LayeredScene {
+/// centred in a `side × side` frame (Note S12's is [`S12_SIZE`]), moved by 3 px in `step`'s
+/// direction.
+pub fn rocket(step: RocketStep, channels: usize, side: usize) -> Result<LayeredScene> {
+    check_side(side)?;
     let (dx, dy) = step.displacement();
-    let c = S12_SIZE as f64 / 2.0;
+    let c = side as f64 / 2.0;
     let poses = [
         Affine::translation(c, c),
         Affine::translation(c + dx, c + dy),
@@ -86,24 +106,28 @@ pub fn rocket(step: RocketStep, channels: usize) -> LayeredScene {
             poses[1].compose(&Affine::translation(0.0, -30.0)).into(),
         ],
     };
-    LayeredScene {
-        width: S12_SIZE,
-        height: S12_SIZE,
+    Ok(LayeredScene {
+        width: side,
+        height: side,
         channels,
         layers: vec![dark_background(channels), body, window],
         supersample: 4,
-    }
+    })
 }
 
-/// A bright disc of `radius` px moving 15 px right (Fig. S10e–g) in a 701×701 frame.
-pub fn disc(radius: f64, channels: usize) -> Result<LayeredScene> {
-    if !(radius.is_finite() && radius > 0.0 && radius < S12_SIZE as f64 / 2.0) {
+/// A bright disc of `radius` px moving 15 px right (Fig. S10e–g), centred in a `side × side`
+/// frame (Note S12's is [`S12_SIZE`]).
+pub fn disc(radius: f64, channels: usize, side: usize) -> Result<LayeredScene> {
+    check_side(side)?;
+    // Both of its positions, 7.5 px either side of the centre, inside the frame.
+    let largest = side as f64 / 2.0 - 8.0;
+    if !(radius.is_finite() && radius > 0.0 && radius < largest) {
         return Err(Error::invalid(
             "disc radius",
-            format!("must be in (0, {}), got {radius}", S12_SIZE / 2),
+            format!("must be in (0, {largest}) in a {side}-px frame, got {radius}"),
         ));
     }
-    let c = S12_SIZE as f64 / 2.0;
+    let c = side as f64 / 2.0;
     let layer = Layer {
         shape: Shape::Disc { radius },
         fill: Fill::Flat(vec![0.9; channels]),
@@ -113,8 +137,8 @@ pub fn disc(radius: f64, channels: usize) -> Result<LayeredScene> {
         ],
     };
     Ok(LayeredScene {
-        width: S12_SIZE,
-        height: S12_SIZE,
+        width: side,
+        height: side,
         channels,
         layers: vec![dark_background(channels), layer],
         supersample: 4,
@@ -161,7 +185,7 @@ mod tests {
     #[test]
     fn rocket_steps_have_exact_flow() {
         for step in [RocketStep::Up, RocketStep::Left, RocketStep::UpRight] {
-            let scene = rocket(step, 1);
+            let scene = rocket(step, 1, S12_SIZE).unwrap();
             let flow = scene.flow().unwrap();
             let (dx, dy) = step.displacement();
             assert_eq!(flow.get(350, 350), (dx as f32, dy as f32));
@@ -170,8 +194,36 @@ mod tests {
     }
 
     #[test]
+    fn the_rocket_is_the_same_in_every_frame_size() {
+        // Centred in each frame, the same pixels move: a larger frame only adds background.
+        let moving = |side: usize| {
+            let flow = rocket(RocketStep::Left, 1, side).unwrap().flow().unwrap();
+            let off = side / 2 - 100;
+            let mut cells = Vec::new();
+            for y in 0..200 {
+                for x in 0..200 {
+                    cells.push(flow.get(y + off, x + off) != (0.0, 0.0));
+                }
+            }
+            (cells, flow.u().iter().filter(|&&u| u != 0.0).count())
+        };
+        let (small, n_small) = moving(201);
+        for side in [401, S12_SIZE, 1201] {
+            let (big, n_big) = moving(side);
+            assert_eq!(n_big, n_small, "{side}: every moving pixel is the rocket's");
+            assert!(
+                small == big,
+                "{side}: the rocket is drawn as in a 201-px frame"
+            );
+        }
+        assert!(n_small > 5000, "{n_small}");
+        assert!(rocket(RocketStep::Up, 1, 150).is_err());
+        assert!(rocket(RocketStep::Up, 1, 5000).is_err());
+    }
+
+    #[test]
     fn discs_move_fifteen_pixels_right() {
-        let scene = disc(3.0, 1).unwrap();
+        let scene = disc(3.0, 1, S12_SIZE).unwrap();
         let flow = scene.flow().unwrap();
         assert_eq!(flow.get(350, 343), (15.0, 0.0));
         let moving = flow.u().iter().filter(|&&u| u != 0.0).count();
@@ -179,7 +231,12 @@ mod tests {
             (20..=40).contains(&moving),
             "{moving} px for a radius-3 disc"
         );
-        assert!(disc(0.0, 1).is_err());
+        assert!(disc(0.0, 1, S12_SIZE).is_err());
+        assert!(
+            disc(95.0, 1, 200).is_err(),
+            "its second position leaves the frame"
+        );
+        assert!(disc(90.0, 1, 200).is_ok());
     }
 
     #[test]

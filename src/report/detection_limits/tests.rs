@@ -64,6 +64,10 @@ fn bad_configs_are_rejected() {
         r#"{"iters": [0]}"#,
         r#"{"moving_px": -1}"#,
         r#"{"min_detected": 2}"#,
+        r#"{"frames": []}"#,
+        r#"{"frames": [150]}"#,
+        r#"{"frames": [701, 5000]}"#,
+        r#"{"cases": [{"disc": 120}], "frames": [701, 240]}"#,
     ] {
         let cfg: LimitsConfig = serde_json::from_str(bad).unwrap();
         assert!(cfg.validate().is_err(), "{bad}");
@@ -73,4 +77,9 @@ fn bad_configs_are_rejected() {
         serde_json::from_str(r#"{"cases": [{"rocket": "up_right"}, {"disc": 5}]}"#).unwrap();
     assert!(ok.validate().is_ok());
     assert_eq!(ok.cases[0].name(), "rocket up_right");
+    assert_eq!(ok.cases[0].name_in(701), "rocket up_right");
+    assert_eq!(ok.cases[1].name_in(1024), "disc r = 5 in 1024×1024");
+    let sweep: LimitsConfig =
+        serde_json::from_str(r#"{"cases": [{"disc": 100}], "frames": [256, 701]}"#).unwrap();
+    assert!(sweep.validate().is_ok());
 }
