@@ -260,6 +260,8 @@ impl Default for AugmentConfig {
 
 /// One training example after cropping and augmentation, planar.
 pub struct Example {
+    /// The crop's `(height, width)`.
+    pub size: (usize, usize),
     pub img1: Vec<f32>,
     pub img2: Vec<f32>,
     pub flow: Vec<f32>,
@@ -310,6 +312,7 @@ pub fn make_example(
     };
     let n = ch * cw;
     let mut out = Example {
+        size: (ch, cw),
         img1: vec![0.0; 3 * n],
         img2: vec![0.0; 3 * n],
         flow: vec![0.0; 2 * n],
@@ -354,9 +357,19 @@ pub struct Batch {
 }
 
 impl Batch {
-    /// Stacks examples of one `(h, w)` onto `device`.
-    pub fn stack(examples: Vec<Example>, h: usize, w: usize, device: &Device) -> Self {
+    /// Stacks examples of one size onto `device`; examples of different sizes are an error.
+    pub fn stack(examples: Vec<Example>, device: &Device) -> Result<Self> {
         let b = examples.len();
+        let (h, w) = examples.first().map_or((0, 0), |e| e.size);
+        if let Some(e) = examples.iter().find(|e| e.size != (h, w)) {
+            return Err(Error::invalid(
+                "batch",
+                format!(
+                    "examples of {}x{} and {}x{} cannot share a batch",
+                    w, h, e.size.1, e.size.0
+                ),
+            ));
+        }
         let (mut i1, mut i2, mut f, mut v) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for e in examples {
             i1.extend(e.img1);
@@ -367,12 +380,12 @@ impl Batch {
         let t = |data: Vec<f32>, c: usize| {
             Tensor::<4>::from_data(TensorData::new(data, [b, c, h, w]), device)
         };
-        Batch {
+        Ok(Batch {
             img1: t(i1, 3),
             img2: t(i2, 3),
             flow: t(f, 2),
             valid: t(v, 1),
-        }
+        })
     }
 }
 

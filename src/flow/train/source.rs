@@ -49,41 +49,46 @@ impl TrainData {
             let (train, val) = set.split(config.val_fraction);
             (fingerprint, Pairs::Folder { train, val })
         };
-        let (h, w) = match &pairs {
+        // Every source's frames against its crop (a stream's source may have its own).
+        let checks: Vec<((usize, usize), [usize; 2])> = match &pairs {
             Pairs::Folder { train, .. } => {
                 let (a, _, _) = train.load(0)?;
-                (a.height(), a.width())
+                vec![((a.height(), a.width()), config.crop)]
             }
-            Pairs::Stream(s) => s.smallest_frame(),
+            Pairs::Stream(s) => s.frames_and_crops(config.crop),
         };
-        if h < config.crop[0] || w < config.crop[1] {
-            return Err(Error::invalid(
-                "train.crop",
-                format!(
-                    "{:?} is larger than the {h}x{w} images of {}",
-                    config.crop,
-                    path.display()
-                ),
-            ));
+        for ((h, w), crop) in checks {
+            if h < crop[0] || w < crop[1] {
+                return Err(Error::invalid(
+                    "train.crop",
+                    format!(
+                        "{crop:?} is larger than the {h}x{w} images of {}",
+                        path.display()
+                    ),
+                ));
+            }
         }
         Ok(Self { fingerprint, pairs })
     }
 
-    /// Training pair `slot` of step `step`'s batch, drawn with `r`: a random training pair of
-    /// a folder, or the stream's pair of that step and slot.
+    /// Training pair `slot` of step `step`'s batch, drawn with `r`, and the crop it is cut to:
+    /// a random training pair of a folder (the run's crop), or the stream's pair of that step
+    /// and slot, from a source of crop `within` when given (the batch's other slots).
     pub fn train_pair(
         &self,
         config: &TrainConfig,
         step: usize,
         slot: usize,
+        within: Option<[usize; 2]>,
         r: &mut rng::Rng,
-    ) -> Result<(Image, Image, Flow)> {
+    ) -> Result<(Image, Image, Flow, [usize; 2])> {
         match &self.pairs {
             Pairs::Folder { train, .. } => {
                 let i = r.random_range(0..train.pairs.len());
-                train.load(i)
+                let (a, b, f) = train.load(i)?;
+                Ok((a, b, f, config.crop))
             }
-            Pairs::Stream(s) => s.train_pair(step, slot, config.batch_size, r),
+            Pairs::Stream(s) => s.train_pair(step, slot, config.batch_size, config.crop, within, r),
         }
     }
 

@@ -38,12 +38,7 @@ pub fn batch(
     step: usize,
     device: &Device,
 ) -> Result<Batch> {
-    Ok(Batch::stack(
-        examples(config, data, step)?,
-        config.crop[0],
-        config.crop[1],
-        device,
-    ))
+    Batch::stack(examples(config, data, step)?, device)
 }
 
 /// The examples of step `step`'s batch, in order: a function of (seed, step) alone, whatever
@@ -51,13 +46,17 @@ pub fn batch(
 pub fn examples(config: &TrainConfig, data: &TrainData, step: usize) -> Result<Vec<Example>> {
     let mut r = rng::stream(config.seed, &[rng::purpose::TRAIN, step as u64]);
     let mut examples = Vec::with_capacity(config.batch_size);
+    // The step's crop: its first pair's (a stream's source may have its own); the other slots
+    // draw among the sources of that crop, so that the batch is of one size.
+    let mut crop = None;
     for slot in 0..config.batch_size {
-        let (a, b, f) = data.train_pair(config, step, slot, &mut r)?;
+        let (a, b, f, c) = data.train_pair(config, step, slot, crop, &mut r)?;
+        let c = *crop.get_or_insert(c);
         examples.push(make_example(
             &a,
             &b,
             &f,
-            (config.crop[0], config.crop[1]),
+            (c[0], c[1]),
             &config.augment,
             &mut r,
         )?);
@@ -87,7 +86,6 @@ pub fn take_parallel(
     step: usize,
     opts: &TrainOptions,
 ) -> Result<(Mms, StepStats)> {
-    let (h, w) = (config.crop[0], config.crop[1]);
     let b = examples.len();
     if devices.len() <= 1 {
         let device = devices
@@ -97,7 +95,7 @@ pub fn take_parallel(
         return take(
             model,
             optim,
-            Batch::stack(examples, h, w, &device),
+            Batch::stack(examples, &device)?,
             config,
             lr,
             step,
@@ -133,7 +131,7 @@ pub fn take_parallel(
                 scope.spawn(move || -> Result<RankOut> {
                     let weight = part.len() as f32 / b as f32;
                     let replica = model.clone().fork(device);
-                    let batch = Batch::stack(part, h, w, device);
+                    let batch = Batch::stack(part, device)?;
                     let preds = replica.forward(batch.img1, batch.img2, config.iters, true);
                     let weights = moving_weights(
                         batch.flow.clone(),

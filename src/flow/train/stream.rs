@@ -13,7 +13,12 @@
 //!              {"generator": "data/7_small.json", "weight": 800}]}
 //! ```
 //!
-//! Paths are relative to the stream file. The validation pairs are a fixed set, apart from every
+//! Paths are relative to the stream file. A source may name its own `"crop": [h, w]` (its
+//! frames must hold it; the run's crop otherwise): a step's batch is cut to the crop of its
+//! first pair's source, and its other slots draw among the sources of that crop, so that a
+//! stream can mix, say, a tenth of frame-sized crops of large scenes into a run of small ones
+//! (the network's feature normalisation takes a whole frame's statistics, and a frame several
+//! times its training crops is otherwise out of what it saw). The validation pairs are a fixed set, apart from every
 //! training pair: pair `j` comes from the source whose share of the weights holds `(j + ½) / n`
 //! (each source in proportion), at sample index `VAL_BASE + j`.
 //!
@@ -51,6 +56,9 @@ pub struct StreamSource {
     pub generator: PathBuf,
     /// The source's share of the pairs, relative to the other sources' weights.
     pub weight: f64,
+    /// The crop `[h, w]` its pairs are cut to, when not the run's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crop: Option<[usize; 2]>,
 }
 
 /// A stream file.
@@ -69,8 +77,10 @@ pub struct Stream {
     /// Cumulative shares of the weights, ending at 1.
     cumulative: Vec<f64>,
     fingerprint: DataFingerprint,
-    /// The smallest frame of any source, `(height, width)`.
-    smallest: (usize, usize),
+    /// Each source's frame, `(height, width)`.
+    frames: Vec<(usize, usize)>,
+    /// Each source's own crop, if it has one.
+    crops: Vec<Option<[usize; 2]>>,
 }
 
 /// Whether `path` names a stream file rather than a folder of pairs.
@@ -99,7 +109,8 @@ impl Stream {
         let mut first = Vec::new();
         let mut cumulative = Vec::new();
         let mut acc = 0.0;
-        let mut smallest = (usize::MAX, usize::MAX);
+        let mut frames = Vec::new();
+        let mut crops = Vec::new();
         use sha2::{Digest, Sha256};
         let mut hash = Sha256::new();
         for (k, source) in config.sources.iter().enumerate() {
@@ -126,7 +137,18 @@ impl Stream {
                     ));
                 }
             };
-            smallest = (smallest.0.min(height), smallest.1.min(width));
+            if let Some(c) = source.crop
+                && !c.iter().all(|&v| v >= 64 && v % 8 == 0)
+            {
+                return Err(crate::io::in_config(
+                    path,
+                    format!(
+                        "sources[{k}].crop: {c:?}; each side must be a multiple of 8, at least 64"
+                    ),
+                ));
+            }
+            frames.push((height, width));
+            crops.push(source.crop);
             // The data's identity: the share, the config as written (its keys in order, so
             // neither its layout nor a move of the checkout counts; a knob added to the code
             // later, off by default, leaves it as it was), the photographs, a probe.
@@ -138,6 +160,13 @@ impl Stream {
                     .as_bytes(),
             );
             hash.update([0]);
+            // A source's own crop is part of what the run trains on (absent, nothing is hashed:
+            // streams written before crops could be named keep their identity).
+            if let Some(c) = source.crop {
+                hash.update(b"crop");
+                hash.update((c[0] as u64).to_le_bytes());
+                hash.update((c[1] as u64).to_le_bytes());
+            }
             if let Some(photos) = photos {
                 for p in photos.library()?.iter() {
                     hash.update(p.name.as_bytes());
@@ -171,7 +200,8 @@ impl Stream {
                 pairs: 0,
                 sha256: digest.iter().map(|b| format!("{b:02x}")).collect(),
             },
-            smallest,
+            frames,
+            crops,
         })
     }
 
@@ -188,7 +218,19 @@ impl Stream {
 
     /// The smallest frame any source makes, `(height, width)`.
     pub fn smallest_frame(&self) -> (usize, usize) {
-        self.smallest
+        self.frames.iter().fold((usize::MAX, usize::MAX), |m, f| {
+            (m.0.min(f.0), m.1.min(f.1))
+        })
+    }
+
+    /// Each source's frame `(height, width)` and the crop its pairs are cut to (`default`, the
+    /// run's, unless it has its own).
+    pub fn frames_and_crops(&self, default: [usize; 2]) -> Vec<((usize, usize), [usize; 2])> {
+        self.frames
+            .iter()
+            .zip(&self.crops)
+            .map(|(&f, c)| (f, c.unwrap_or(default)))
+            .collect()
     }
 
     /// The source whose share of the weights holds `t` in [0, 1).
@@ -206,10 +248,42 @@ impl Stream {
         step: usize,
         slot: usize,
         batch: usize,
+        default: [usize; 2],
+        within: Option<[usize; 2]>,
         r: &mut rng::Rng,
-    ) -> Result<(Image, Image, Flow)> {
-        let k = self.source_at(r.random_range(0.0..1.0));
-        self.make(k, self.first[k] + step * batch + slot)
+    ) -> Result<(Image, Image, Flow, [usize; 2])> {
+        let t = r.random_range(0.0..1.0);
+        let crop_of = |k: usize| self.crops[k].unwrap_or(default);
+        let k = match within {
+            Some(c) if (0..self.crops.len()).any(|k| crop_of(k) != c) => {
+                self.source_of_crop(t, c, default)
+            }
+            _ => self.source_at(t),
+        };
+        let (a, b, f) = self.make(k, self.first[k] + step * batch + slot)?;
+        Ok((a, b, f, crop_of(k)))
+    }
+
+    /// The source whose share among the sources of crop `crop` holds `t` in [0, 1).
+    fn source_of_crop(&self, t: f64, crop: [usize; 2], default: [usize; 2]) -> usize {
+        let shares: Vec<(usize, f64)> = (0..self.crops.len())
+            .filter(|&k| self.crops[k].unwrap_or(default) == crop)
+            .map(|k| {
+                (
+                    k,
+                    self.cumulative[k] - k.checked_sub(1).map_or(0.0, |j| self.cumulative[j]),
+                )
+            })
+            .collect();
+        let total: f64 = shares.iter().map(|s| s.1).sum();
+        let mut acc = 0.0;
+        for &(k, share) in &shares {
+            acc += share / total;
+            if t < acc {
+                return k;
+            }
+        }
+        shares.last().map_or(0, |s| s.0)
     }
 
     /// Validation pair `j` of `n`: from the source whose share holds `(j + ½) / n`, at sample
@@ -291,7 +365,11 @@ mod tests {
         // A pair is made again exactly; another index is another pair.
         let pair = |step, slot| {
             let mut r = rng::stream(5, &[step as u64]);
-            stream.train_pair(step, slot, 2, &mut r).expect("pair")
+            let (a, b, f, crop) = stream
+                .train_pair(step, slot, 2, [24, 32], None, &mut r)
+                .expect("pair");
+            assert_eq!(crop, [24, 32], "no source has a crop of its own");
+            (a, b, f)
         };
         let (a1, b1, f1) = pair(3, 1);
         let (a2, b2, f2) = pair(3, 1);
@@ -376,7 +454,9 @@ mod tests {
         let generator = Generator::new(GeneratorConfig::from_file(&dir.join("a.json")).unwrap())
             .expect("generator");
         let mut r = rng::stream(1, &[0]);
-        let (a, _, _) = stream.train_pair(2, 1, 3, &mut r).expect("pair");
+        let (a, _, _, _) = stream
+            .train_pair(2, 1, 3, [24, 32], None, &mut r)
+            .expect("pair");
         let (g, _, _) = generator.pair(5 + 2 * 3 + 1).expect("sample");
         assert_eq!(a.data(), crate::flow::data::to_rgb(g).data());
         let _ = std::fs::remove_dir_all(&dir);
@@ -467,6 +547,79 @@ mod tests {
             .expect("missing")
             .to_string();
         assert!(e.contains("missing.json"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A source with a crop of its own: every batch is of one size, the steps of each crop come
+    /// in proportion to their sources' weights, and a large step's slots all come from the
+    /// sources of its crop; a crop its frames cannot hold is refused.
+    #[test]
+    fn a_source_with_its_own_crop_makes_whole_batches_of_it() {
+        use crate::flow::train::{TrainConfig, source::TrainData, step};
+        let dir = folder("crops");
+        let chairs = |seed: u64, w: usize, h: usize| {
+            format!(
+                r#"{{"count": 1, "seed": {seed}, "scene": {{"kind": "chairs", "width": {w}, "height": {h}, "supersample": 1, "sprites": [1, 2]}}}}"#
+            )
+        };
+        write(&dir, "a.json", &chairs(3, 80, 64));
+        write(&dir, "c.json", &chairs(5, 80, 72));
+        write(&dir, "b.json", &chairs(4, 160, 128));
+        let mix = write(
+            &dir,
+            "mix.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 2}, {"generator": "c.json", "weight": 1},
+                            {"generator": "b.json", "weight": 1, "crop": [128, 144]}]}"#,
+        );
+        let config = TrainConfig {
+            crop: [64, 64],
+            batch_size: 3,
+            ..TrainConfig::default()
+        };
+        let data = TrainData::open(&mix, &config).expect("open");
+        let mut large = 0;
+        for s in 0..80 {
+            let examples = step::examples(&config, &data, s).expect("examples");
+            let sizes: Vec<_> = examples.iter().map(|e| e.size).collect();
+            assert!(sizes.iter().all(|&z| z == sizes[0]), "step {s}: {sizes:?}");
+            assert!(sizes[0] == (64, 64) || sizes[0] == (128, 144), "{sizes:?}");
+            large += (sizes[0] == (128, 144)) as usize;
+        }
+        // A quarter of the weight: about 20 of 80 steps.
+        assert!(
+            (8..=34).contains(&large),
+            "{large} of 80 steps at the large crop"
+        );
+        // The same stream without the crop is another run's data.
+        let plain = write(
+            &dir,
+            "plain.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 2}, {"generator": "c.json", "weight": 1},
+                            {"generator": "b.json", "weight": 1}]}"#,
+        );
+        let other = TrainData::open(&plain, &config).expect("open");
+        assert_ne!(data.fingerprint, other.fingerprint);
+        // Frames smaller than a source's crop, and a crop off the grid, are refused.
+        let bad = write(
+            &dir,
+            "bad.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1, "crop": [128, 144]}]}"#,
+        );
+        let err = TrainData::open(&bad, &config)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(err.contains("[128, 144]") && err.contains("64x80"), "{err}");
+        let odd = write(
+            &dir,
+            "odd.json",
+            r#"{"sources": [{"generator": "b.json", "weight": 1, "crop": [100, 144]}]}"#,
+        );
+        let err = TrainData::open(&odd, &config)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(err.contains("sources[0].crop"), "{err}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
