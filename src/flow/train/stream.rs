@@ -600,26 +600,25 @@ mod tests {
         let other = TrainData::open(&plain, &config).expect("open");
         assert_ne!(data.fingerprint, other.fingerprint);
         // Frames smaller than a source's crop, and a crop off the grid, are refused.
-        let bad = write(
-            &dir,
-            "bad.json",
-            r#"{"sources": [{"generator": "a.json", "weight": 1, "crop": [128, 144]}]}"#,
-        );
-        let err = TrainData::open(&bad, &config)
-            .err()
-            .expect("refused")
-            .to_string();
-        assert!(err.contains("[128, 144]") && err.contains("64x80"), "{err}");
-        let odd = write(
-            &dir,
-            "odd.json",
-            r#"{"sources": [{"generator": "b.json", "weight": 1, "crop": [100, 144]}]}"#,
-        );
-        let err = TrainData::open(&odd, &config)
-            .err()
-            .expect("refused")
-            .to_string();
-        assert!(err.contains("sources[0].crop"), "{err}");
+        for (name, text, says) in [
+            (
+                "bad.json",
+                r#"{"sources": [{"generator": "a.json", "weight": 1, "crop": [128, 144]}]}"#,
+                ["[128, 144]", "64x80"],
+            ),
+            (
+                "odd.json",
+                r#"{"sources": [{"generator": "b.json", "weight": 1, "crop": [100, 144]}]}"#,
+                ["sources[0].crop", "multiple of 8"],
+            ),
+        ] {
+            let file = write(&dir, name, text);
+            let err = TrainData::open(&file, &config)
+                .err()
+                .expect("refused")
+                .to_string();
+            assert!(says.iter().all(|w| err.contains(w)), "{name}: {err}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
