@@ -105,7 +105,7 @@ impl TrainConfig {
             ),
             (
                 "crop",
-                self.crop.iter().all(|&c| c >= 64 && c % 8 == 0),
+                crop_fits_the_network(self.crop),
                 "sides that are multiples of 8, at least 64",
             ),
             ("iters", (1..=64).contains(&self.iters), "in 1..=64"),
@@ -166,6 +166,12 @@ impl TrainConfig {
         }
         Ok(())
     }
+}
+
+/// Whether `crop` can be trained on: sides that are multiples of 8 (the network's 1/8 grid), at
+/// least 64 (the coarsest correlation level keeps a cell).
+pub fn crop_fits_the_network(crop: [usize; 2]) -> bool {
+    crop.iter().all(|&c| c >= 64 && c % 8 == 0)
 }
 
 #[cfg(test)]

@@ -18,8 +18,9 @@
 //! first pair's source, and its other slots draw among the sources of that crop, so that a
 //! stream can mix, say, a tenth of frame-sized crops of large scenes into a run of small ones
 //! (the network's feature normalisation takes a whole frame's statistics, and a frame several
-//! times its training crops is otherwise out of what it saw). The validation pairs are a fixed set, apart from every
-//! training pair: pair `j` comes from the source whose share of the weights holds `(j + ½) / n`
+//! times its training crops is otherwise out of what it saw).
+//!
+//! The validation pairs are a fixed set, apart from every training pair: pair `j` comes from the source whose share of the weights holds `(j + ½) / n`
 //! (each source in proportion), at sample index `VAL_BASE + j`.
 //!
 //! The fingerprint (kept by checkpoints, so that a resume on other data is refused) hashes each
@@ -138,7 +139,7 @@ impl Stream {
                 }
             };
             if let Some(c) = source.crop
-                && !c.iter().all(|&v| v >= 64 && v % 8 == 0)
+                && !super::config::crop_fits_the_network(c)
             {
                 return Err(crate::io::in_config(
                     path,
@@ -217,7 +218,8 @@ impl Stream {
     }
 
     /// The smallest frame any source makes, `(height, width)`.
-    pub fn smallest_frame(&self) -> (usize, usize) {
+    #[cfg(test)]
+    fn smallest_frame(&self) -> (usize, usize) {
         self.frames.iter().fold((usize::MAX, usize::MAX), |m, f| {
             (m.0.min(f.0), m.1.min(f.1))
         })
