@@ -20,8 +20,9 @@
 //! (the network's feature normalisation takes a whole frame's statistics, and a frame several
 //! times its training crops is otherwise out of what it saw).
 //!
-//! The validation pairs are a fixed set, apart from every training pair: pair `j` comes from the source whose share of the weights holds `(j + ½) / n`
-//! (each source in proportion), at sample index `VAL_BASE + j`.
+//! The validation pairs are a fixed set, apart from every training pair: pair `j` comes from
+//! the source whose share of the weights holds `(j + ½) / n` (each source in proportion), at
+//! sample index `VAL_BASE + j`.
 //!
 //! The fingerprint (kept by checkpoints, so that a resume on other data is refused) hashes each
 //! source's share of the weights, its config as written (as a JSON value, keys sorted: not its
