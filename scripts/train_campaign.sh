@@ -9,7 +9,7 @@
 #                                                  With COOLDOWN_MINUTES=M, the last M minutes
 #                                                  of BUDGET cool a branch of the run down (as
 #                                                  `cooldown`, its length from the session's
-#                                                  median step), so that a session ends with
+#                                                  mean step), so that a session ends with
 #                                                  weights worth scoring; not when the run was
 #                                                  stopped before its budget (SIGTERM)
 #   scripts/train_campaign.sh gpu MINUTES OUTDIR   continue on a GPU (--device wgpu) until MINUTES
@@ -20,7 +20,7 @@
 #                                                  16 MiB). With COOLDOWN_MINUTES=M (less than
 #                                                  MINUTES), the last M minutes cool a branch of
 #                                                  the run down instead (as `cooldown`, its
-#                                                  length from the session's median step:
+#                                                  length from the session's mean step:
 #                                                  OUTDIR/cooldown.safetensors and
 #                                                  cooldown_log.csv)
 #   scripts/train_campaign.sh cooldown STEPS [BUDGET]
@@ -155,8 +155,9 @@ cool_minutes() {
 }
 
 # cool_down_tail MINUTES SINCE SECONDS [ARGS...]: cools a branch of the run down from where it
-# stands, over as many steps as 80 % of MINUTES hold at the median of this session's steps
-# (those after step SINCE; the rest is for its validations and last step), at most the steps
+# stands, over as many steps as 80 % of MINUTES hold at the mean of this session's last 100
+# steps (those after step SINCE; the rest is for its validations and last step; the mean, not
+# the median, since a stream of two crop sizes makes steps of two lengths), at most the steps
 # the run has left, within SECONDS; ARGS go to pins train (a device), NICE prefixes it. Sets
 # `cooled` to the branch's folder when it ran.
 cool_down_tail() {
@@ -171,8 +172,8 @@ state, log, cool, since = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.ar
 s = json.load(open(state))
 rows = [l.split(",") for l in open(log).read().splitlines()[1:]]
 # This session's steps only (a carried log holds other machines' rows before them).
-ms = [float(r[5]) for r in rows if len(r) > 5 and r[5] and int(r[0]) > since][-20:]
-n = int(0.8 * cool * 60e3 / statistics.median(ms)) if ms else 0
+ms = [float(r[5]) for r in rows if len(r) > 5 and r[5] and int(r[0]) > since][-100:]
+n = int(0.8 * cool * 60e3 / statistics.mean(ms)) if ms else 0
 print(s["step"], max(0, min(n, s["config"]["steps"] - s["step"])))
 PY
     ) || die "cannot plan the cool-down from $state and $RUN/log.csv"

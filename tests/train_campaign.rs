@@ -539,7 +539,7 @@ fn the_campaign_script_continues_from_wherever_it_stands() {
 }
 
 /// The GPU mode (here on the CPU) with COOLDOWN_MINUTES: the run trains, then a branch of it
-/// cools down over as many steps as the session's median step allows, complete within the
+/// cools down over as many steps as the session's mean step allows, complete within the
 /// minutes; its weights and log come back beside the run's checkpoint.
 /// A campaign folder of a tiny run (64×64 crops, 2 iterations) on one generated source, long
 /// enough never to finish within a test.
@@ -585,7 +585,7 @@ fn the_campaign_script_cools_a_branch_down_in_a_gpu_session() {
         &env,
         &[("DEVICE", "cpu"), ("COOLDOWN_MINUTES", "1")],
     );
-    // The cool-down's steps are planned from the run's median step; whether they all fit its
+    // The cool-down's steps are planned from the run's mean step; whether they all fit its
     // minute depends on the machine's load, so a cool-down stopped by its budget passes too,
     // said as such, and only a complete one must take the rate to near zero.
     let complete = text.contains("cool-down complete");
@@ -624,7 +624,7 @@ fn the_campaign_script_ends_a_cpu_session_with_a_cool_down() {
     let (ok_, text) = campaign(&["run", "100s"], &env, &[("COOLDOWN_MINUTES", "2")]);
     assert!(!ok_ && text.contains("leaves no time"), "{text}");
     assert!(!work.join("run").exists(), "nothing ran: {text}");
-    // About 40 s of run, then a minute's cool-down of a branch, planned from the run's median
+    // About 40 s of run, then a minute's cool-down of a branch, planned from the run's mean
     // step (whether it ends within its minute depends on the machine's load, so only that it
     // ran and took the rate down is asserted).
     let (ok_, text) = campaign(&["run", "130s"], &env, &[("COOLDOWN_MINUTES", "1")]);
