@@ -2,6 +2,8 @@
 //! after Brox et al. 2004): the network's flow, which works at 1/8 resolution, is refined at
 //! 1/4, 1/2 and full resolution by brightness and gradient constancy with a robust
 //! smoothness term, which recovers the sub-pixel accuracy a 1/8-resolution estimate lacks.
+//! A coarse pass's increment fades where the full-size flow holds detail its coarse version
+//! lacks (a small mover the network resolved, Note S12's r = 3 disc), which it would erase.
 
 pub mod linearise;
 #[cfg(test)]
@@ -11,6 +13,7 @@ pub mod solver;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::imaging::box_filter::box_mean;
 use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
@@ -244,8 +247,30 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
                 .map(|(r, s)| r - s)
                 .collect();
             let inc = resize_flow(&Flow::from_vec(sh, sw, inc)?, h, w)?;
-            let mut data = out.data().to_vec();
-            data.iter_mut().zip(inc.data()).for_each(|(d, i)| *d += i);
+            // The coarse pass sees the flow as its coarse version. Where the full-size flow
+            // holds detail that version lacks (a small mover the network resolved), deviating
+            // from it by a coarse pixel (s px) or more, the pass solved for a flow that is not
+            // there, and its increment would smooth the detail away for good: the finer passes'
+            // linearisation cannot bring back a motion many pixels off. So the increment fades
+            // from whole where the coarse version holds the flow to nothing a coarse pixel away
+            // from it, the weight averaged over the coarse pixel's neighbourhood.
+            let n = h * w;
+            let coarse = resize_flow(&start, h, w)?;
+            let (f, c) = (out.data(), coarse.data());
+            let weight: Vec<f32> = (0..n)
+                .map(|k| {
+                    let d = (f[k] - c[k]).hypot(f[n + k] - c[n + k]);
+                    (1.0 - d / s as f32).clamp(0.0, 1.0)
+                })
+                .collect();
+            let (weight, _) = box_mean(&weight, w, h, s as usize);
+            let data: Vec<f32> = out
+                .data()
+                .iter()
+                .zip(inc.data())
+                .enumerate()
+                .map(|(k, (o, i))| o + weight[k % n] * i)
+                .collect();
             out = Flow::from_vec(h, w, data)?;
         }
     }

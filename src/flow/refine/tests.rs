@@ -248,3 +248,39 @@ fn settings_from_a_json_file() {
     let e = Refine::parse(d.path().join("none.json").to_str().unwrap()).unwrap_err();
     assert!(e.to_string().contains("none.json"), "{e}");
 }
+
+/// A small mover the start resolves (Note S12's r = 3 disc, 15 px a frame, over a textured
+/// still background) keeps its motion: at 1/4 resolution the disc is under 2 px, and a coarse
+/// pass's increment, brought back to full size, would otherwise smooth its flow into the
+/// background, which the finer passes' linearisation cannot bring back from 15 px away.
+#[test]
+fn a_small_fast_mover_survives_the_coarse_passes() {
+    let (h, w) = (96, 128);
+    let (bg, _) = moved_pair(h, w, 0.0, 0.0);
+    let (r, (cx, cy), du) = (3.0f32, (40.0f32, 48.0f32), 15.0f32);
+    let disc = |x: f32, y: f32, ox: f32| ((x - cx - ox).powi(2) + (y - cy).powi(2)).sqrt() <= r;
+    let frame = |ox: f32| {
+        let data = (0..h * w)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                if disc(x, y, ox) { 0.95 } else { bg.plane(0)[i] }
+            })
+            .collect();
+        Image::from_vec(1, h, w, data).unwrap()
+    };
+    let (a, b) = (frame(0.0), frame(du));
+    let mut start = Flow::zeros(h, w);
+    let mut inside = vec![];
+    for y in 0..h {
+        for x in 0..w {
+            if disc(x as f32, y as f32, 0.0) {
+                start.set(y, x, du, 0.0);
+                inside.push((y, x));
+            }
+        }
+    }
+    let out = refine(&a, &b, &start, &RefineConfig::default()).unwrap();
+    let mean = inside.iter().map(|&(y, x)| out.get(y, x).0).sum::<f32>() / inside.len() as f32;
+    // Without the fade the coarse passes leave about 3 px of the 15.
+    assert!(mean > 8.0, "the disc's mean flow {mean:.2} px of {du}");
+}
