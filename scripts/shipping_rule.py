@@ -1,0 +1,143 @@
+#!/usr/bin/env python3
+"""The shipping rule of the training ledger, applied to reports the commands wrote.
+
+Candidate weights replace the shipped `mms-small-real` only when, on `pins bench-real --config
+experiments/bench_real.json` at 12 iterations with the flow commands' defaults (the refined rows,
+"mms-small + variational", where the reports have them):
+
+  1. through the camera, the EPE over all known pixels is lower than the shipped weights';
+  2. no real set, through the camera or clean, has an EPE more than 2 % above the shipped
+     weights' (`--tolerance`);
+
+and every Note S12 report given (`pins detect-limits ... --out DIR`, DIR/report.json; the
+defaults and `--start zero`) detects every case at every iteration count.
+
+    scripts/shipping_rule.py CANDIDATE/report.json SHIPPED/report.json [--s12 DIR/report.json ...]
+
+Both bench-real reports must come from the same build and config (a comparison is always
+between weights scored with the same refinement). Prints one row per set and camera and the
+verdict; exits 0 when the candidate ships, 1 when it does not, 2 on unusable input.
+"""
+import argparse
+import json
+import sys
+
+ITERS = 12
+
+
+def fail(msg):
+    print(f"shipping_rule: {msg}", file=sys.stderr)
+    sys.exit(2)
+
+
+def load(path):
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, json.JSONDecodeError) as e:
+        fail(f"{path}: {e}")
+
+
+def method_of(methods):
+    """The refined row when the report has one (the defaults), else the network alone."""
+    names = {m["method"] for m in methods if m.get("iters") == ITERS}
+    for name in ("mms-small + variational", "mms-small", "mms + variational", "mms"):
+        if name in names:
+            return name
+    refined = sorted(n for n in names if n.endswith("+ variational"))
+    if refined:
+        return refined[0]
+    if names:
+        return sorted(names)[0]
+    return None
+
+
+def scores(report, path):
+    """{(set, camera): epe} and {camera: pooled epe} of the report's 12-iteration MMS rows."""
+    runs = report.get("runs")
+    if not isinstance(runs, list) or not runs:
+        fail(f"{path}: no runs (is it a `pins bench-real` report.json?)")
+    per_set, method = {}, None
+    for run in runs:
+        m = method_of(run.get("methods", []))
+        if m is None:
+            fail(f"{path}: set {run.get('set')} has no MMS row at {ITERS} iterations")
+        method = method or m
+        if m != method:
+            fail(f"{path}: sets scored by different methods ({method}, {m})")
+        row = next(x for x in run["methods"] if x["method"] == m and x.get("iters") == ITERS)
+        per_set[(run["set"], run["camera"])] = row["epe"]
+    pooled = {}
+    for s in report.get("summary", []):
+        if s["pooled"]["method"] == method and s["pooled"].get("iters") == ITERS:
+            pooled[s["camera"]] = s["pooled"]["epe"]
+    if "camera" not in pooled:
+        fail(f"{path}: no pooled score through the camera for {method}")
+    return method, per_set, pooled
+
+
+def s12_misses(report, path):
+    cases = report.get("scores")
+    if not isinstance(cases, list) or not cases:
+        fail(f"{path}: no scores (is it a `pins detect-limits` report.json?)")
+    start = report.get("start", "?")
+    return [
+        f"{c['case']} @{c['iters']} ({start} start)" for c in cases if not c.get("detected")
+    ]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("candidate", help="bench-real report.json of the candidate weights")
+    ap.add_argument("shipped", help="bench-real report.json of the shipped weights")
+    ap.add_argument("--s12", nargs="*", default=[], help="detect-limits report.json files")
+    ap.add_argument("--tolerance", type=float, default=0.02,
+                    help="largest relative EPE rise allowed on any set (default 0.02)")
+    a = ap.parse_args()
+    mc, cand, cand_pool = scores(load(a.candidate), a.candidate)
+    ms, ship, ship_pool = scores(load(a.shipped), a.shipped)
+    if mc != ms:
+        fail(f"the reports score different methods ({mc} against {ms})")
+    if set(cand) != set(ship):
+        fail(f"the reports hold different sets: {sorted(set(cand) ^ set(ship))}")
+
+    print(f"| set | camera | shipped EPE | candidate EPE | change | within {a.tolerance:.0%} |")
+    print("|---|---|---|---|---|---|")
+    worse = []
+    for key in sorted(ship, key=lambda k: (k[1], k[0])):
+        s, c = ship[key], cand[key]
+        change = (c - s) / s if s > 0 else 0.0
+        ok = change <= a.tolerance
+        if not ok:
+            worse.append(f"{key[0]} {key[1]} {change:+.1%}")
+        print(f"| {key[0]} | {key[1]} | {s:.3f} | {c:.3f} | {change:+.1%} | {'yes' if ok else '**no**'} |")
+    for cam in sorted(ship_pool):
+        if cam in cand_pool:
+            s, c = ship_pool[cam], cand_pool[cam]
+            print(f"| all known pixels | {cam} | {s:.3f} | {c:.3f} | {(c - s) / s:+.1%} | |")
+
+    misses = []
+    for path in a.s12:
+        misses += s12_misses(load(path), path)
+
+    reasons = []
+    if not cand_pool["camera"] < ship_pool["camera"]:
+        reasons.append(
+            f"not better over all pixels through the camera "
+            f"({cand_pool['camera']:.3f} against {ship_pool['camera']:.3f})"
+        )
+    if worse:
+        reasons.append("sets worse by more than the tolerance: " + ", ".join(worse))
+    if misses:
+        reasons.append("Note S12 cases not detected: " + ", ".join(misses))
+    print()
+    print(f"method: {mc}, {ITERS} iterations; Note S12 reports: {len(a.s12)}")
+    if reasons:
+        print("verdict: does not ship: " + "; ".join(reasons))
+        sys.exit(1)
+    print("verdict: ships (bench-real and the Note S12 reports given; the tracker's system "
+          "test is separate)")
+
+
+if __name__ == "__main__":
+    main()

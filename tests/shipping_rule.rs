@@ -1,0 +1,171 @@
+//! `scripts/shipping_rule.py` (the training ledger's rule for shipping weights): on bench-real
+//! and detect-limits reports of the shape the commands write, it ships a candidate only when it
+//! is better over all pixels through the camera, no set is more than 2 % worse and every Note
+//! S12 case is detected, and names what failed otherwise. Runs where Python 3 is found
+//! (`PINS_PYTHON`, else `python3`); says SKIPPED otherwise.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::{Value, json};
+
+fn python() -> Option<String> {
+    let py = std::env::var("PINS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let found = Command::new(&py)
+        .args(["-c", "import json"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        eprintln!("SKIPPED shipping_rule: no {py} (set PINS_PYTHON)");
+    }
+    found.then_some(py)
+}
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/shipping_rule.py")
+}
+
+const SETS: [&str; 3] = ["middlebury", "kitti", "photo_warps"];
+
+/// A bench-real report whose refined rows at 12 iterations have `epe[set][camera]` (camera 0:
+/// clean, 1: through the camera) and the pooled EPE `pooled` per camera; the network-alone
+/// rows are worse and must be ignored.
+fn bench(epe: [[f64; 2]; 3], pooled: [f64; 2]) -> Value {
+    let row =
+        |method: &str, iters: u32, epe: f64| json!({"method": method, "iters": iters, "epe": epe});
+    let cameras = ["clean", "camera"];
+    let runs: Vec<Value> = SETS
+        .iter()
+        .enumerate()
+        .flat_map(|(i, set)| {
+            cameras.iter().enumerate().map(move |(c, cam)| {
+                json!({"set": set, "camera": cam, "methods": [
+                    row("mms-small", 12, 10.0 * epe[i][c]),
+                    row("mms-small + variational", 4, 10.0 * epe[i][c]),
+                    row("mms-small + variational", 12, epe[i][c]),
+                    {"method": "zero flow", "iters": null, "epe": 99.0},
+                ]})
+            })
+        })
+        .collect();
+    let summary: Vec<Value> = cameras
+        .iter()
+        .enumerate()
+        .map(|(c, cam)| {
+            json!({"camera": cam, "pooled": row("mms-small + variational", 12, pooled[c])})
+        })
+        .collect();
+    json!({"runs": runs, "summary": summary})
+}
+
+fn s12(detected: bool) -> Value {
+    json!({"start": "zero", "scores": [
+        {"case": "rocket up", "iters": 12, "detected": true},
+        {"case": "disc r = 3", "iters": 12, "detected": detected},
+    ]})
+}
+
+fn run(py: &str, dir: &Path, cand: &Value, ship: &Value, s12s: &[Value]) -> Output {
+    let write = |name: &str, v: &Value| {
+        let p = dir.join(name);
+        std::fs::write(&p, v.to_string()).unwrap();
+        p
+    };
+    let (c, s) = (write("cand.json", cand), write("ship.json", ship));
+    let mut cmd = Command::new(py);
+    cmd.arg(script()).arg(&c).arg(&s);
+    if !s12s.is_empty() {
+        cmd.arg("--s12");
+        for (i, v) in s12s.iter().enumerate() {
+            cmd.arg(write(&format!("s12_{i}.json"), v));
+        }
+    }
+    cmd.output().unwrap()
+}
+
+const SHIPPED: [[f64; 2]; 3] = [[0.112, 0.652], [12.2, 14.3], [2.41, 3.53]];
+
+#[test]
+fn ships_only_better_weights_with_no_set_worse_and_every_case_found() {
+    let Some(py) = python() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let ship = bench(SHIPPED, [2.23, 3.28]);
+
+    // Better over all pixels, Middlebury through the camera 1.5 % worse: within the rule.
+    let mut e = SHIPPED;
+    e[0][1] *= 1.015;
+    e[2][1] *= 0.9;
+    let ok = run(
+        &py,
+        tmp.path(),
+        &bench(e, [2.20, 3.10]),
+        &ship,
+        &[s12(true)],
+    );
+    let text = String::from_utf8_lossy(&ok.stdout);
+    assert_eq!(ok.status.code(), Some(0), "{text}");
+    assert!(text.contains("verdict: ships"), "{text}");
+    assert!(
+        text.contains("| middlebury | camera | 0.652 | 0.662 | +1.5% | yes |"),
+        "{text}"
+    );
+
+    // The same with KITTI clean 3 % worse: the set is named.
+    e[1][0] *= 1.03;
+    let out = run(
+        &py,
+        tmp.path(),
+        &bench(e, [2.20, 3.10]),
+        &ship,
+        &[s12(true)],
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("kitti clean +3.0%"), "{text}");
+
+    // Every set better, but not over all pixels through the camera (the pooled score).
+    let better = SHIPPED.map(|s| s.map(|x| 0.99 * x));
+    let out = run(&py, tmp.path(), &bench(better, [2.20, 3.30]), &ship, &[]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("not better over all pixels through the camera (3.300 against 3.280)"));
+
+    // Better everywhere, but a Note S12 case lost.
+    let out = run(
+        &py,
+        tmp.path(),
+        &bench(better, [2.20, 3.10]),
+        &ship,
+        &[s12(true), s12(false)],
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("disc r = 3 @12 (zero start)"), "{text}");
+}
+
+#[test]
+fn unusable_reports_are_refused_with_the_reason() {
+    let Some(py) = python() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let ship = bench(SHIPPED, [2.23, 3.28]);
+    // A detect-limits report where a bench-real one belongs.
+    let out = run(&py, tmp.path(), &s12(true), &ship, &[]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no runs"));
+    // Reports over different sets.
+    let mut fewer = bench(SHIPPED, [2.23, 3.28]);
+    fewer["runs"].as_array_mut().unwrap().pop();
+    let out = run(&py, tmp.path(), &fewer, &ship, &[]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("different sets"));
+    // Not JSON at all.
+    std::fs::write(tmp.path().join("bad.json"), "{ no").unwrap();
+    let out = Command::new(&py)
+        .arg(script())
+        .arg(tmp.path().join("bad.json"))
+        .arg(tmp.path().join("bad.json"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.json"));
+}
