@@ -1,6 +1,7 @@
 //! Box filtering by summed-area tables (f64, so the cost does not depend on the radius):
 //! the mean over the (2r + 1)² box around each pixel, clipped at the border, skipping unknown
-//! values; and the square dilation of a mask.
+//! values; the minimum over the box (a grey erosion, separable); and the square dilation of a
+//! mask.
 
 /// The mean of the known (finite) values in the `(2r + 1)²` box around each pixel of a
 /// `[h, w]` plane, the box clipped at the border, and how many values it averaged; NaN where
@@ -41,6 +42,35 @@ pub fn box_mean(p: &[f32], w: usize, h: usize, r: usize) -> (Vec<f32>, Vec<u32>)
     (out, counts)
 }
 
+/// The minimum over the `(2r + 1)²` box around each pixel of a `[h, w]` plane, the box clipped
+/// at the border (a grey erosion by a square; separable: rows, then columns). NaN counts as
+/// unknown and is skipped; a box of unknown values gives NaN.
+pub fn box_min(p: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    // The least known value of an iterator, NaN when it holds none.
+    fn least(values: impl Iterator<Item = f32>) -> f32 {
+        values
+            .filter(|v| !v.is_nan())
+            .reduce(f32::min)
+            .unwrap_or(f32::NAN)
+    }
+    let mut rows = vec![f32::NAN; w * h];
+    for y in 0..h {
+        let row = &p[y * w..(y + 1) * w];
+        for x in 0..w {
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            rows[y * w + x] = least(row[x0..x1].iter().copied());
+        }
+    }
+    let mut out = vec![f32::NAN; w * h];
+    for y in 0..h {
+        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+        for x in 0..w {
+            out[y * w + x] = least((y0..y1).map(|yy| rows[yy * w + x]));
+        }
+    }
+    out
+}
+
 /// The pixels within `r` (a square neighbourhood) of a `true` pixel of a `[h, w]` mask.
 pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
     let ones: Vec<f32> = mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect();
@@ -54,6 +84,36 @@ pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn box_min_matches_a_direct_minimum_and_skips_unknown_values() {
+        let (w, h) = (9, 6);
+        let mut p: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32 - 3.0).collect();
+        p[10] = f32::NAN;
+        for r in [0, 1, 2, 5] {
+            let got = box_min(&p, w, h, r);
+            for y in 0..h {
+                for x in 0..w {
+                    let mut m = f32::INFINITY;
+                    for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+                        for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
+                            if !p[yy * w + xx].is_nan() {
+                                m = m.min(p[yy * w + xx]);
+                            }
+                        }
+                    }
+                    let want = if m.is_finite() { m } else { f32::NAN };
+                    let g = got[y * w + x];
+                    assert!(
+                        g == want || (g.is_nan() && want.is_nan()),
+                        "r {r} at ({x}, {y})"
+                    );
+                }
+            }
+        }
+        // A box of nothing but unknown values stays unknown.
+        assert!(box_min(&[f32::NAN; 4], 2, 2, 1).iter().all(|v| v.is_nan()));
+    }
 
     #[test]
     fn box_mean_matches_a_direct_sum_and_skips_unknown_values() {

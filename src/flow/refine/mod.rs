@@ -2,8 +2,9 @@
 //! after Brox et al. 2004): the network's flow, which works at 1/8 resolution, is refined at
 //! 1/4, 1/2 and full resolution by brightness and gradient constancy with a robust
 //! smoothness term, which recovers the sub-pixel accuracy a 1/8-resolution estimate lacks.
-//! A coarse pass's increment fades where the full-size flow holds detail its coarse version
-//! lacks (a small mover the network resolved, Note S12's r = 3 disc), which it would erase.
+//! A coarse pass's increment fades where the full-size flow, within the reach of the pass's
+//! derivatives, holds detail its coarse version lacks (a small mover the network resolved,
+//! Note S12's r = 3 disc; a motion boundary blurred by the metalens), which it would erase.
 
 pub mod linearise;
 #[cfg(test)]
@@ -13,7 +14,7 @@ pub mod solver;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::imaging::box_filter::box_mean;
+use crate::imaging::box_filter::{box_mean, box_min};
 use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
@@ -253,7 +254,11 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
             // there, and its increment would smooth the detail away for good: the finer passes'
             // linearisation cannot bring back a motion many pixels off. So the increment fades
             // from whole where the coarse version holds the flow to nothing a coarse pixel away
-            // from it, the weight averaged over the coarse pixel's neighbourhood.
+            // from it. A coarse pixel's constraints read the frames over the five-point
+            // derivatives' reach, two coarse pixels, so detail that near also corrupts its
+            // increment (through the metalens, whose blur spreads a mover's light over tens of
+            // pixels, most of all): the weight is the least over that reach (2s px), then
+            // averaged over a coarse pixel's neighbourhood.
             let n = h * w;
             let coarse = resize_flow(&start, h, w)?;
             let (f, c) = (out.data(), coarse.data());
@@ -263,6 +268,7 @@ pub fn refine(img1: &Image, img2: &Image, flow: &Flow, cfg: &RefineConfig) -> Re
                     (1.0 - d / s as f32).clamp(0.0, 1.0)
                 })
                 .collect();
+            let weight = box_min(&weight, w, h, 2 * s as usize);
             let (weight, _) = box_mean(&weight, w, h, s as usize);
             let data: Vec<f32> = out
                 .data()
