@@ -65,6 +65,14 @@ fn s12(detected: bool) -> Value {
     ]})
 }
 
+/// The script's exit status and what it printed to stdout.
+fn verdict(out: &Output) -> (Option<i32>, String) {
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    )
+}
+
 fn run(py: &str, dir: &Path, cand: &Value, ship: &Value, s12s: &[Value]) -> Output {
     let write = |name: &str, v: &Value| {
         let p = dir.join(name);
@@ -95,15 +103,14 @@ fn ships_only_better_weights_with_no_set_worse_and_every_case_found() {
     let mut e = SHIPPED;
     e[0][1] *= 1.015;
     e[2][1] *= 0.9;
-    let ok = run(
+    let (code, text) = verdict(&run(
         &py,
         tmp.path(),
         &bench(e, [2.20, 3.10]),
         &ship,
         &[s12(true)],
-    );
-    let text = String::from_utf8_lossy(&ok.stdout);
-    assert_eq!(ok.status.code(), Some(0), "{text}");
+    ));
+    assert_eq!(code, Some(0), "{text}");
     assert!(text.contains("verdict: ships"), "{text}");
     assert!(
         text.contains("| middlebury | camera | 0.652 | 0.662 | +1.5% | yes |"),
@@ -112,34 +119,37 @@ fn ships_only_better_weights_with_no_set_worse_and_every_case_found() {
 
     // The same with KITTI clean 3 % worse: the set is named.
     e[1][0] *= 1.03;
-    let out = run(
+    let (code, text) = verdict(&run(
         &py,
         tmp.path(),
         &bench(e, [2.20, 3.10]),
         &ship,
         &[s12(true)],
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(1), "{text}");
+    ));
+    assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("kitti clean +3.0%"), "{text}");
 
     // Every set better, but not over all pixels through the camera (the pooled score).
     let better = SHIPPED.map(|s| s.map(|x| 0.99 * x));
-    let out = run(&py, tmp.path(), &bench(better, [2.20, 3.30]), &ship, &[]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(1), "{text}");
+    let (code, text) = verdict(&run(
+        &py,
+        tmp.path(),
+        &bench(better, [2.20, 3.30]),
+        &ship,
+        &[],
+    ));
+    assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("not better over all pixels through the camera (3.300 against 3.280)"));
 
     // Better everywhere, but a Note S12 case lost.
-    let out = run(
+    let (code, text) = verdict(&run(
         &py,
         tmp.path(),
         &bench(better, [2.20, 3.10]),
         &ship,
         &[s12(true), s12(false)],
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(1), "{text}");
+    ));
+    assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("disc r = 3 @12 (zero start)"), "{text}");
 }
 

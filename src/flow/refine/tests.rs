@@ -301,6 +301,9 @@ fn a_blurred_motion_boundary_keeps_a_correct_flow() {
     let inside = |x: f32, y: f32, ox: f32| {
         (x0 + ox..x0 + ox + side).contains(&x) && (y0..y0 + side).contains(&y)
     };
+    let (psf, _) = crate::imaging::psf_source::load("default").unwrap();
+    let psf = psf.to_mono();
+    let (kh, kw) = psf.size();
     let frame = |ox: f32| {
         let p: Vec<f32> = (0..h * w)
             .map(|i| {
@@ -312,9 +315,6 @@ fn a_blurred_motion_boundary_keeps_a_correct_flow() {
                 }
             })
             .collect();
-        let (psf, _) = crate::imaging::psf_source::load("default").unwrap();
-        let psf = psf.to_mono();
-        let (kh, kw) = psf.size();
         let blurred = crate::imaging::convolve::convolve_plane(
             &p,
             h,
