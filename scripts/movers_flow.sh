@@ -4,16 +4,17 @@
 # config uses), each method's flow, and scripts/flow_response.py over the moving pixels (every
 # still background pixel has zero true flow and is left out of its bands).
 #
-#   scripts/movers_flow.sh OUT [WEIGHTS[@ITERS[@START]] ...] [dis]
+#   scripts/movers_flow.sh OUT [WEIGHTS[@ITERS[@START[@SCALE]]] ...] [dis]
 #
 # WEIGHTS is what `pins infer --weights` takes (mms-small, mms-small-real, a file); ITERS
-# defaults to 4 and START to zero, the tracker's settings; no refinement. `dis` is OpenCV's DIS
+# defaults to 4, START to zero and SCALE (`pins infer --scale`: the network at this multiple of
+# the frames' size) to 1; no refinement. The tracker's flow is mms-small-real@4@zero@2. `dis` is OpenCV's DIS
 # medium (scripts/dis_flows.py; needs opencv-python-headless). PINS names the binary (default:
 # pins on the PATH), PYTHON the interpreter (default python3).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 die() { echo "movers_flow: $*" >&2; exit 1; }
-[ $# -ge 2 ] || die "usage: scripts/movers_flow.sh OUT METHOD [METHOD ...] (METHOD: WEIGHTS[@ITERS[@START]] or dis)"
+[ $# -ge 2 ] || die "usage: scripts/movers_flow.sh OUT METHOD [METHOD ...] (METHOD: WEIGHTS[@ITERS[@START[@SCALE]]] or dis)"
 PINS=${PINS:-pins}
 PYTHON=${PYTHON:-python3}
 out=$1; shift
@@ -25,9 +26,10 @@ for method in "$@"; do
     if [ "$method" = dis ]; then
         name=dis_medium
     else
-        IFS=@ read -r weights iters start <<<"$method"
-        iters=${iters:-4}; start=${start:-zero}
+        IFS=@ read -r weights iters start scale <<<"$method"
+        iters=${iters:-4}; start=${start:-zero}; scale=${scale:-1}
         name="$(basename "$weights" .safetensors)_${iters}it_$start"
+        [ "$scale" = 1 ] || name="${name}_x$scale"
     fi
     dir=$out/$name
     mkdir -p "$dir"
@@ -45,7 +47,7 @@ for method in "$@"; do
                 rm -r "$tmp"
             else
                 "$PINS" infer --img1 "$data/${i}_img1.png" --img2 "$data/${i}_img2.png" \
-                    --weights "$weights" --iters "$iters" --start "$start" --refine none \
+                    --weights "$weights" --iters "$iters" --start "$start" --refine none --scale "$scale" \
                     --out "$est" >/dev/null
             fi
         fi

@@ -209,6 +209,11 @@ fn live_on_a_folder_tracks_as_pins_track_does() {
             "2",
             "--horizons",
             "1,5",
+            // `pins live`'s own flow without --config: stage 3 at the frame's size.
+            "--weights",
+            "mms-small",
+            "--scale",
+            "1",
         ])
         .arg("--frames")
         .arg(&frames)
@@ -263,8 +268,8 @@ fn live_on_a_folder_tracks_as_pins_track_does() {
     let cfg = dir.path().join("track.json");
     std::fs::write(
         &cfg,
-        r#"{"profile": "estimated", "flow": {"iters": 4}, "tracker": {"confirm": 2},
-            "horizons": [1, 5]}"#,
+        r#"{"profile": "estimated", "flow": {"iters": 4, "weights": "mms-small", "scale": 1},
+            "tracker": {"confirm": 2}, "horizons": [1, 5]}"#,
     )
     .unwrap();
     let (live_cfg, track_cfg) = (dir.path().join("live_cfg"), dir.path().join("track_cfg"));

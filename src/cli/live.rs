@@ -44,8 +44,8 @@ pub(crate) struct LiveArgs {
     /// The defaults for an estimated flow (the default here) or an exact one.
     #[arg(long)]
     profile: Option<Profile>,
-    /// MMS weights (flow.weights): a file, or the built-in mms-small (the default here),
-    /// mms-small-real or default (= mms-small-real).
+    /// MMS weights (flow.weights): a file, or the built-in mms-small (the default here
+    /// without --config), mms-small-real or default (= mms-small-real).
     #[arg(long)]
     weights: Option<String>,
     /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
@@ -281,7 +281,8 @@ pub(crate) fn live(a: LiveArgs) -> Result<()> {
 pub(crate) const LIVE_HORIZONS: [usize; 3] = [1, 5, 15];
 
 /// The tracking settings: the config file (or the estimated profile's defaults, with
-/// `LIVE_HORIZONS`, `auto` iterations) and the flags' overrides.
+/// `LIVE_HORIZONS`, `auto` iterations and `LIVE_WEIGHTS` at the frame's size) and the flags'
+/// overrides.
 fn settings(a: &LiveArgs) -> Result<TrackConfig> {
     let cfg = match &a.config {
         Some(p) => TrackConfig::from_file(p)?,
@@ -293,6 +294,11 @@ fn settings(a: &LiveArgs) -> Result<TrackConfig> {
             // At most the weights' own updates, stopping once the flow settles: on the
             // bench-live clips the same EPE as all twelve in 37–52 % of their time.
             cfg.flow.iters = Some(pins::flow::iters::Iters::Auto);
+            // The frame budget first: stage 3 at the frame's own size, a quarter of the
+            // offline tracker's flow time (the shipped weights at twice the size,
+            // `TRACK_SCALE`), which sees camouflaged movers that this misses.
+            cfg.flow.weights = pins::flow::infer::LIVE_WEIGHTS.into();
+            cfg.flow.scale = 1.0;
             cfg
         }
     };

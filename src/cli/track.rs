@@ -63,8 +63,8 @@ struct RunArgs {
     /// Device of the MMS network: cpu, or a GPU backend of this build (wgpu[:N], cuda[:N]).
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// MMS weights for --frames (flow.weights): a file, or the built-in mms-small (the
-    /// default here), mms-small-real or default (= mms-small-real).
+    /// MMS weights for --frames (flow.weights): a file, or the built-in mms-small-real (the
+    /// default), default (= mms-small-real) or mms-small.
     #[arg(long)]
     weights: Option<String>,
     /// MMS refinement iterations (flow.iters): a count, or auto (at most the weights' own,
@@ -79,8 +79,8 @@ struct RunArgs {
     #[arg(long)]
     no_reuse: bool,
     /// With --frames: run MMS at this multiple of the frame size, in (0, 4] (flow.scale;
-    /// default 1): below 1 faster, above 1 small movers are seen larger. Tracks stay in the
-    /// frame's pixels.
+    /// default 2): below 2 faster, but a small mover textured like its background is seen
+    /// in part. Tracks stay in the frame's pixels.
     #[arg(long)]
     scale: Option<f64>,
     /// Confirmation window (tracker.confirm; default 5): consecutive detections moving as

@@ -36,9 +36,14 @@ pub const BUILTIN_WEIGHTS: [(&str, &str, &[u8]); 2] = [
 /// What `--weights default` names.
 pub const DEFAULT_WEIGHTS: &str = "mms-small-real";
 
-/// The weights the tracker uses by default (`pins track --frames`, `pins live`, track
-/// experiments).
-pub const TRACK_WEIGHTS: &str = "mms-small";
+/// The weights the tracker uses by default (`pins track --frames`, track experiments, `pins
+/// live --config`): the flow commands' own, run at twice the frame size
+/// (`track::config::TRACK_SCALE`).
+pub const TRACK_WEIGHTS: &str = DEFAULT_WEIGHTS;
+
+/// The weights of `pins live` without `--config`: stage 3, the fastest to see a small mover at
+/// the frame's own size (`cli::live`).
+pub const LIVE_WEIGHTS: &str = "mms-small";
 
 /// Parses `--start`: `coarse` (from the network's own flow at half resolution) or `zero`.
 pub fn parse_start(s: &str) -> Result<bool> {

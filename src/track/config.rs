@@ -42,18 +42,25 @@ impl std::str::FromStr for Profile {
     }
 }
 
+/// The multiple of the frame size the tracker's MMS runs at by default. A disc textured like
+/// its background and 16 px across is two or three cells of the network's 1/8-resolution
+/// features at the frame's size, and the shipped weights report a tenth to a half of its
+/// motion there; at twice the size they report three quarters or more (as OpenCV's DIS does),
+/// at four times the flow's cost (`experiments/results/tracking_history.md`, 2026-11-30).
+pub const TRACK_SCALE: f64 = 2.0;
+
 /// The flow network's settings, used where the flow is estimated by MMS.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FlowConfig {
-    /// A weights file, or built-in: `mms-small` (stage 3, the tracking default),
-    /// `mms-small-real`, `default` (= `mms-small-real`).
+    /// A weights file, or built-in: `mms-small-real` (the tracking default), `default` (= the
+    /// same), `mms-small` (stage 3, `pins live`'s default).
     pub weights: String,
     /// Refinement iterations: a count, `"auto"` (at most the weights' own, stopping once the
     /// flow settles) or `null`: the weights' own (12 for the built-in ones).
     pub iters: Option<Iters>,
     /// The multiple of the frame size MMS runs at, in (0, 4] (`flow::scale`): the flow is
-    /// resampled to the frame, so tracks stay in its pixels.
+    /// resampled to the frame, so tracks stay in its pixels. Default [`TRACK_SCALE`].
     pub scale: f64,
     /// What follows MMS: `none` (on the tracking clips the refinement pulls a small, dark
     /// mover's flow towards its background), `variational` or a `.json` file of its settings.
@@ -73,7 +80,7 @@ impl Default for FlowConfig {
         Self {
             weights: crate::flow::infer::TRACK_WEIGHTS.into(),
             iters: None,
-            scale: 1.0,
+            scale: TRACK_SCALE,
             refine: "none".into(),
             start: "zero".into(),
             reuse: true,

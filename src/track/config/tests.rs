@@ -66,7 +66,7 @@ fn the_profiles_are_the_old_resolved_defaults() {
         assert_eq!(c.flow.iters, None);
         assert_eq!(
             (c.flow.scale, c.flow.refine.as_str(), c.flow.start.as_str()),
-            (1.0, "none", "zero")
+            (2.0, "none", "zero")
         );
         c.validate().unwrap();
         // Resolving again changes nothing; a named profile wins over the fallback.

@@ -211,7 +211,10 @@ impl ExperimentConfig {
         self.track
             .validate()
             .map_err(|e| Error::invalid("track", e.to_string()))?;
-        if self.track.flow.scale != 1.0 && self.flow != FlowSource::Mms {
+        // Only the network runs at a scale: another flow refuses one set away from the default.
+        if self.track.flow.scale != crate::track::config::TRACK_SCALE
+            && self.flow != FlowSource::Mms
+        {
             return Err(Error::invalid(
                 "track.flow.scale",
                 "only MMS flow runs at a scale (set \"flow\": \"mms\")",
