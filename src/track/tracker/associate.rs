@@ -163,12 +163,17 @@ fn overlaps(a: &Region, b: &Region) -> bool {
     covers(a, b.centroid) || covers(b, a.centroid)
 }
 
+/// In the cascade, a detection whose cost to a later track is under this share of its cost
+/// to an earlier one waits for the later track.
+const CASCADE_YIELD: f64 = 0.5;
+
 /// The matching cascade (DeepSORT's, Wojke et al. 2017): the optimal assignment of the
 /// confirmed tracks seen in the last frame first, then of those missed once on the detections
 /// they left, and so on, and the tentative tracks' last. A track that has coasted longer has
 /// the less certain prediction, and its gate has widened: given the same detection, a track
 /// seen a frame ago keeps its object rather than lose it to one lost for several (two movers
-/// that cross, one of whose flow fell short).
+/// that cross, one of whose flow fell short). A detection much nearer a later track than an
+/// earlier one (`CASCADE_YIELD`) waits for the later track.
 fn cascade(tracks: &[Tracked], cost: &[Vec<f64>]) -> Vec<Option<usize>> {
     let mut matches = vec![None; tracks.len()];
     let mut taken = vec![false; cost.first().map_or(0, Vec::len)];
@@ -182,7 +187,23 @@ fn cascade(tracks: &[Tracked], cost: &[Vec<f64>]) -> Vec<Option<usize>> {
         let rows: Vec<usize> = (0..tracks.len())
             .filter(|&i| level(&tracks[i]) == at)
             .collect();
-        let sub = only(cost, &rows, |j| !taken[j]);
+        let later: Vec<usize> = (0..tracks.len())
+            .filter(|&i| level(&tracks[i]) > at)
+            .collect();
+        let mut sub = only(cost, &rows, |j| !taken[j]);
+        // Recency orders the tracks, but does not hand a track a detection that lies much
+        // nearer a later track's prediction: that is the later track's object, seen again
+        // after a miss, beside a neighbour whose own object went unseen this frame.
+        for (r, &i) in rows.iter().enumerate() {
+            for (j, c) in sub[r].iter_mut().enumerate() {
+                if later
+                    .iter()
+                    .any(|&k| cost[k][j] < CASCADE_YIELD * cost[i][j])
+                {
+                    *c = f64::INFINITY;
+                }
+            }
+        }
         for (&i, m) in rows.iter().zip(assign(&sub)) {
             if let Some(j) = m {
                 taken[j] = true;
@@ -405,6 +426,15 @@ mod tests {
         assert_eq!(
             associate(&tracks[..1], &dets, &config).matches,
             vec![Some(0)]
+        );
+        // But a detection much nearer the track that missed a frame (3 px) than the one seen
+        // last frame (35 px: its own object unseen this frame) is the missed track's.
+        let mut missed = track((3.0, 0.0), (1.0, 0.0), true);
+        missed.misses = 1;
+        let beside = track((-35.0, 0.0), (1.0, 0.0), true);
+        assert_eq!(
+            associate(&[beside, missed], &dets, &config).matches,
+            vec![None, Some(0)]
         );
         // Each level is optimal among its own tracks: two tracks missed once share two
         // detections by distance, after the one seen last frame took its own.
