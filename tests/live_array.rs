@@ -170,6 +170,11 @@ fn array_frames_are_stitched_flowed_and_tracked_live_as_from_the_recording() {
         "4",
         "--confirm",
         "2",
+        // `pins live`'s own flow without --config: stage 3 at the frame's size.
+        "--weights",
+        "mms-small",
+        "--scale",
+        "1",
         "--frames",
         s(&stitched),
         "--out",
