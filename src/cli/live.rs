@@ -295,10 +295,10 @@ fn settings(a: &LiveArgs) -> Result<TrackConfig> {
             // bench-live clips the same EPE as all twelve in 37–52 % of their time.
             cfg.flow.iters = Some(pins::flow::iters::Iters::Auto);
             // The frame budget first: stage 3 at the frame's own size, a quarter of the
-            // offline tracker's flow time (the shipped weights at twice the size,
-            // `TRACK_SCALE`), which sees camouflaged movers that this misses.
+            // offline tracker's flow time (the shipped weights at twice a 640×480 frame's
+            // size, `TRACK_WIDTH`), which sees camouflaged movers that this misses.
             cfg.flow.weights = pins::flow::infer::LIVE_WEIGHTS.into();
-            cfg.flow.scale = 1.0;
+            cfg.flow.scale = Some(1.0);
             cfg
         }
     };

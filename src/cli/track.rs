@@ -79,8 +79,9 @@ struct RunArgs {
     #[arg(long)]
     no_reuse: bool,
     /// With --frames: run MMS at this multiple of the frame size, in (0, 4] (flow.scale;
-    /// default 2): below 2 faster, but a small mover textured like its background is seen
-    /// in part. Tracks stay in the frame's pixels.
+    /// default: the frame made 1280 px wide, 2 for 640×480, 4 for 320×240): smaller is
+    /// faster, but a small mover textured like its background is seen in part. Tracks stay
+    /// in the frame's pixels.
     #[arg(long)]
     scale: Option<f64>,
     /// Confirmation window (tracker.confirm; default 5): consecutive detections moving as
@@ -164,27 +165,29 @@ fn run(a: RunArgs) -> Result<()> {
             let files = io::frame_files(dir)?;
             let predictor = cfg.flow.predictor(pins::flow::device::select(&a.device)?)?;
             let (iters, video) = cfg.flow.iters_for(&predictor);
+            let scale = match files.first() {
+                Some(f) => cfg.flow.scale_for(io::read_image(f)?.width()),
+                None => cfg.flow.scale_for(0),
+            };
             let mut flow_ms = 0.0;
             let mut prev: Option<GreyFrame> = None;
             let flows =
-                pair_flows_scaled(&predictor, files.as_slice(), iters, cfg.flow.scale, video)?.map(
-                    |p| {
-                        let p = p?;
-                        flow_ms += p.ms;
-                        let first = match prev.take() {
-                            Some(g) => g,
-                            None => GreyFrame::new(&io::read_image(&files[p.index])?),
-                        };
-                        let second = GreyFrame::new(&io::read_image(&files[p.index + 1])?);
-                        let pair = GreyPair::of(&first, &second);
-                        prev = Some(second);
-                        Ok(tr::FlowStep {
-                            name: files[p.index].display().to_string(),
-                            flow: p.flow,
-                            frames: pair,
-                        })
-                    },
-                );
+                pair_flows_scaled(&predictor, files.as_slice(), iters, scale, video)?.map(|p| {
+                    let p = p?;
+                    flow_ms += p.ms;
+                    let first = match prev.take() {
+                        Some(g) => g,
+                        None => GreyFrame::new(&io::read_image(&files[p.index])?),
+                    };
+                    let second = GreyFrame::new(&io::read_image(&files[p.index + 1])?);
+                    let pair = GreyPair::of(&first, &second);
+                    prev = Some(second);
+                    Ok(tr::FlowStep {
+                        name: files[p.index].display().to_string(),
+                        flow: p.flow,
+                        frames: pair,
+                    })
+                });
             let run = tr::track_sequence(flows, &opts, truth.as_ref())?;
             let n = files.len() - 1;
             (run, n, Some(flow_ms / n as f64))
@@ -366,7 +369,7 @@ fn settings(a: &RunArgs) -> Result<TrackConfig> {
         None => TrackConfig::default(),
     };
     if let Some(s) = a.scale {
-        cfg.flow.scale = s;
+        cfg.flow.scale = Some(s);
     }
     let flags = Overrides {
         profile: a.profile,

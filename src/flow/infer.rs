@@ -37,8 +37,8 @@ pub const BUILTIN_WEIGHTS: [(&str, &str, &[u8]); 2] = [
 pub const DEFAULT_WEIGHTS: &str = "mms-small-real";
 
 /// The weights the tracker uses by default (`pins track --frames`, track experiments, `pins
-/// live --config`): the flow commands' own, run at twice the frame size
-/// (`track::config::TRACK_SCALE`).
+/// live --config`): the flow commands' own, run with the frame made 1280 px wide
+/// (`track::config::TRACK_WIDTH`: twice a 640×480 frame).
 pub const TRACK_WEIGHTS: &str = DEFAULT_WEIGHTS;
 
 /// The weights of `pins live` without `--config`: stage 3, the fastest to see a small mover at

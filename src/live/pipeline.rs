@@ -26,8 +26,9 @@ pub struct PipelineConfig {
     /// Downscale factor in (0, 1] of the (stitched) frames: tracks are in these pixels.
     pub scale: f64,
     /// The multiple of the downscaled frame's size that MMS runs at (`flow::scale`,
-    /// `TrackConfig::flow.scale`), the flow brought back to it.
-    pub flow_scale: f64,
+    /// `TrackConfig::flow.scale`), the flow brought back to it; `None`: the tracker's default
+    /// for the frame's width (`track::config::track_scale`).
+    pub flow_scale: Option<f64>,
     pub iters: usize,
     /// What carries from pair to pair (`flow::video`): feature reuse, warm start, early stop.
     pub video: VideoOptions,
@@ -78,7 +79,8 @@ pub struct Pipeline {
     predictor: Predictor,
     cfg: PipelineConfig,
     tracker: LiveTracker,
-    video: VideoFlow,
+    /// Made at the first pair of each frame size (the scale may follow the width).
+    video: Option<VideoFlow>,
     /// The processed frames' times and spans in stream frames.
     clock: StreamClock,
     prev: Option<Prepared>,
@@ -107,12 +109,15 @@ struct Prepared {
 impl Pipeline {
     pub fn new(predictor: Predictor, cfg: PipelineConfig) -> Result<Self> {
         let tracker = LiveTracker::new(cfg.track.clone())?;
-        let video = VideoFlow::new(cfg.video, cfg.flow_scale)?;
+        // Checked now, so a bad scale fails before the first frame.
+        if let Some(s) = cfg.flow_scale {
+            VideoFlow::new(cfg.video, s)?;
+        }
         Ok(Self {
             predictor,
             cfg,
             tracker,
-            video,
+            video: None,
             clock: StreamClock::new(),
             prev: None,
             last_dt: None,
@@ -149,7 +154,7 @@ impl Pipeline {
             // A new frame size (the camera was reconfigured): nothing carries over.
             self.size_changes += 1;
             self.tracker.reset()?;
-            self.video.reset();
+            self.video = None;
             self.clock = StreamClock::new();
             self.last_dt = None;
             self.prev = Some(cur);
@@ -171,8 +176,17 @@ impl Pipeline {
             .map_or(1.0, |last| (dt / last).clamp(0.1, 10.0));
         self.last_dt = Some(dt);
         let t1 = Instant::now();
-        let flow = self
-            .video
+        let video = match &mut self.video {
+            Some(v) => v,
+            None => {
+                let scale = self
+                    .cfg
+                    .flow_scale
+                    .unwrap_or_else(|| crate::track::config::track_scale(cur.image.width()));
+                self.video.insert(VideoFlow::new(self.cfg.video, scale)?)
+            }
+        };
+        let flow = video
             .pair(
                 &self.predictor,
                 &prev.image,

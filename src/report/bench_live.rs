@@ -104,7 +104,7 @@ impl LiveBenchConfig {
             f.iters = Some(n);
         }
         if let Some(s) = p.scale {
-            f.scale = s;
+            f.scale = Some(s);
         }
         if let Some(r) = p.reuse {
             f.reuse = r;
@@ -178,8 +178,10 @@ pub fn run(
             let predictor = tc.flow.predictor(device.clone())?;
             let (iters, video) = tc.flow.iters_for(&predictor);
             let estimate = |f: &[Image]| -> Result<(Vec<Flow>, f64)> {
-                let pairs = pair_flows_scaled(&predictor, f, iters, tc.flow.scale, video)?
-                    .collect::<Result<Vec<_>>>()?;
+                let width = f.first().map_or(0, |i| i.width());
+                let pairs =
+                    pair_flows_scaled(&predictor, f, iters, tc.flow.scale_for(width), video)?
+                        .collect::<Result<Vec<_>>>()?;
                 let ms = pairs.iter().map(|p| p.ms).sum::<f64>() / pairs.len().max(1) as f64;
                 Ok((pairs.into_iter().map(|p| p.flow).collect(), ms))
             };
@@ -415,7 +417,7 @@ mod tests {
         let tc = cfg.flow_of(&cfg.points[0]).expect("point");
         assert_eq!(tc.flow.iters, Some(Iters::Auto));
         assert!(tc.flow.warm_start && tc.flow.reuse);
-        assert_eq!(tc.flow.scale, 0.5);
+        assert_eq!(tc.flow.scale, Some(0.5));
         assert_eq!(cfg.clips[0].loaded.scene.frames, 6);
     }
 

@@ -42,12 +42,26 @@ impl std::str::FromStr for Profile {
     }
 }
 
-/// The multiple of the frame size the tracker's MMS runs at by default. A disc textured like
-/// its background and 16 px across is two or three cells of the network's 1/8-resolution
-/// features at the frame's size, and the shipped weights report a tenth to a half of its
-/// motion there; at twice the size they report three quarters or more (as OpenCV's DIS does),
-/// at four times the flow's cost (`experiments/results/tracking_history.md`, 2026-11-30).
-pub const TRACK_SCALE: f64 = 2.0;
+/// The width (px) the tracker's MMS runs at by default: the frame is scaled to it, between 1
+/// and `MAX_TRACK_SCALE` times its size (twice a 640×480 frame, four times a 320×240 one). A
+/// disc textured like its background and 16 px across is two or three cells of the network's
+/// 1/8-resolution features at the frame's size, and the shipped weights report a tenth to a
+/// half of its motion there; at twice the size three quarters or more (as OpenCV's DIS does).
+/// A camera's frames at half the width hold the same scene at half the size, and the same
+/// weights at twice such a frame's size report a tenth (`experiments/results/
+/// tracking_history.md`, 2026-11-30 and 2026-12-01). The flow's cost grows with the area run.
+pub const TRACK_WIDTH: f64 = 1280.0;
+
+/// The most the default scale enlarges a frame (`flow::scale`'s limit).
+pub const MAX_TRACK_SCALE: f64 = 4.0;
+
+/// The tracker's default scale for frames `width` px wide (`TRACK_WIDTH`).
+pub fn track_scale(width: usize) -> f64 {
+    if width == 0 {
+        return 1.0;
+    }
+    (TRACK_WIDTH / width as f64).clamp(1.0, MAX_TRACK_SCALE)
+}
 
 /// The flow network's settings, used where the flow is estimated by MMS.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -60,8 +74,9 @@ pub struct FlowConfig {
     /// flow settles) or `null`: the weights' own (12 for the built-in ones).
     pub iters: Option<Iters>,
     /// The multiple of the frame size MMS runs at, in (0, 4] (`flow::scale`): the flow is
-    /// resampled to the frame, so tracks stay in its pixels. Default [`TRACK_SCALE`].
-    pub scale: f64,
+    /// resampled to the frame, so tracks stay in its pixels. `null` (the default): the
+    /// multiple that makes the frame [`TRACK_WIDTH`] px wide, between 1 and 4 (`track_scale`).
+    pub scale: Option<f64>,
     /// What follows MMS: `none` (on the tracking clips the refinement pulls a small, dark
     /// mover's flow towards its background), `variational` or a `.json` file of its settings.
     pub refine: String,
@@ -80,7 +95,7 @@ impl Default for FlowConfig {
         Self {
             weights: crate::flow::infer::TRACK_WEIGHTS.into(),
             iters: None,
-            scale: TRACK_SCALE,
+            scale: None,
             refine: "none".into(),
             start: "zero".into(),
             reuse: true,
@@ -112,13 +127,18 @@ impl FlowConfig {
         (iters, video)
     }
 
+    /// The multiple of the frame size MMS runs at for frames `width` px wide: the one set, or
+    /// the default's (`track_scale`).
+    pub fn scale_for(&self, width: usize) -> f64 {
+        self.scale.unwrap_or_else(|| track_scale(width))
+    }
+
     pub fn validate(&self) -> Result<()> {
-        crate::flow::scale::check_scale(self.scale).map_err(|_| {
-            Error::invalid(
-                "flow.scale",
-                format!("must be in (0, 4], got {}", self.scale),
-            )
-        })?;
+        if let Some(s) = self.scale {
+            crate::flow::scale::check_scale(s).map_err(|_| {
+                Error::invalid("flow.scale", format!("must be in (0, 4] or null, got {s}"))
+            })?;
+        }
         if let Some(n) = self.iters {
             n.check()
                 .map_err(|e| Error::invalid("flow.iters", e.to_string()))?;

@@ -66,8 +66,12 @@ fn the_profiles_are_the_old_resolved_defaults() {
         assert_eq!(c.flow.iters, None);
         assert_eq!(
             (c.flow.scale, c.flow.refine.as_str(), c.flow.start.as_str()),
-            (2.0, "none", "zero")
+            (None, "none", "zero")
         );
+        // The default scale makes a frame 1280 px wide, enlarging it at most 4 times.
+        let widths = [160, 320, 640, 1000, 1280, 1920];
+        let scales = widths.map(|w| c.flow.scale_for(w));
+        assert_eq!(scales, [4.0, 4.0, 2.0, 1.28, 1.0, 1.0]);
         c.validate().unwrap();
         // Resolving again changes nothing; a named profile wins over the fallback.
         let other = if est {

@@ -128,7 +128,8 @@ pub struct ExperimentConfig {
     #[serde(default)]
     pub track: TrackConfig,
     /// MMS flow only: the points of the whole system's error-against-run-time curve (flow
-    /// resolution and iterations). Empty: one point, `track.flow.scale` and `track.flow.iters`.
+    /// resolution and iterations). Empty: one point, `track.flow.scale` (for each clip's width
+    /// where it is `null`) and `track.flow.iters`.
     #[serde(default)]
     pub operating_points: Vec<OperatingPoint>,
 }
@@ -138,12 +139,13 @@ fn default_source() -> FlowSource {
 }
 
 impl ExperimentConfig {
-    /// The operating points to run: the configured ones, or `track.flow`'s scale and
-    /// iterations (`weights_iters`, the weights' own, where it names none).
-    pub fn points(&self, weights_iters: usize) -> Vec<OperatingPoint> {
+    /// The operating points to run on a clip `width` px wide: the configured ones, or
+    /// `track.flow`'s scale and iterations (`weights_iters`, the weights' own, where it names
+    /// none).
+    pub fn points(&self, weights_iters: usize, width: usize) -> Vec<OperatingPoint> {
         if self.operating_points.is_empty() {
             vec![OperatingPoint {
-                scale: self.track.flow.scale,
+                scale: self.track.flow.scale_for(width),
                 iters: self
                     .track
                     .flow
@@ -212,9 +214,7 @@ impl ExperimentConfig {
             .validate()
             .map_err(|e| Error::invalid("track", e.to_string()))?;
         // Only the network runs at a scale: another flow refuses one set away from the default.
-        if self.track.flow.scale != crate::track::config::TRACK_SCALE
-            && self.flow != FlowSource::Mms
-        {
+        if self.track.flow.scale.is_some() && self.flow != FlowSource::Mms {
             return Err(Error::invalid(
                 "track.flow.scale",
                 "only MMS flow runs at a scale (set \"flow\": \"mms\")",
@@ -375,9 +375,9 @@ pub fn run(
     let mut background = Vec::new();
     let mut flow_ms = Vec::new();
     let mut points = Vec::new();
-    let several = cfg.points(weights_iters).len() > 1;
+    let several = cfg.points(weights_iters, 0).len() > 1;
     for clip in &cfg.clips {
-        for point in cfg.points(weights_iters) {
+        for point in cfg.points(weights_iters, clip.loaded.scene.width) {
             let (data, ms) = clip_flows(&clip.loaded, cfg.flow, predictor.as_ref(), point, video)?;
             flow_ms.extend(ms);
             let mms_point = (cfg.flow == FlowSource::Mms).then_some(point);
