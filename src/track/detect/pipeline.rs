@@ -79,10 +79,18 @@ impl FrameDetection {
 
     /// Records each accepted region's mean colour in frame n (`frame`, its colour samples) over
     /// a disc of half its equivalent radius (at least 2 px) at its centre, the placed one when
-    /// the still background placed it (`Region::colour`, the tracker's appearance cue).
+    /// the still background placed it (`Region::colour`, the tracker's appearance cue). A
+    /// region whose foreground lies far from its flow's centroid (`Placement::Far`: a smear
+    /// along its object's path, or another object's foreground) has none: its centroid need
+    /// not lie on any object, and the background's colour there would gate its association
+    /// and enter its track's appearance as if it were the object's.
     pub fn colour(&mut self, frame: &ColourFrame) {
         for c in self.candidates.iter_mut().filter(|c| c.accepted) {
             let r = &mut c.region;
+            if r.placed.is_none() && matches!(c.placement, Some(Placement::Far { .. })) {
+                r.colour = None;
+                continue;
+            }
             let radius = (0.5 * (r.pixels as f64 / std::f64::consts::PI).sqrt()).max(2.0);
             r.colour = frame.mean_in_disc(r.placed.unwrap_or(r.centroid), radius);
         }

@@ -259,3 +259,30 @@ fn a_weak_detection_beside_another_stands_only_on_an_object_of_its_own() {
     assert!(c.iter().all(|c| !c.beside));
     assert_eq!(found.accepted().len(), 2);
 }
+
+/// A region's colour is the frame's at its placed centre, or at its flow's centroid where the
+/// still background kept that; a region whose foreground lies far from its centroid (a smear
+/// along its object's path) has none, whatever lies under the centroid.
+#[test]
+fn a_region_whose_foreground_lies_far_from_its_centroid_has_no_colour() {
+    let frame = flat_discs(64, 40, &[(20.0, 20.0)], true);
+    let mut placed = blob((30.0, 20.0), 113, false);
+    placed.placed = Some((20.0, 20.0));
+    let far = Candidate {
+        placement: Some(Placement::Far {
+            to: (40.0, 20.0),
+            shift: 20.0,
+            limit: 3.0,
+        }),
+        ..candidate(blob((20.0, 20.0), 113, false), true, false)
+    };
+    let kept = Candidate {
+        placement: Some(Placement::Kept("the camera moves".into())),
+        ..candidate(blob((50.0, 20.0), 113, false), true, false)
+    };
+    let mut found = detection(vec![candidate(placed, true, false), far, kept]);
+    found.colour(&frame);
+    let colours: Vec<Option<[f64; 3]>> = found.candidates.iter().map(|c| c.region.colour).collect();
+    // 0.7 and 0.3 of 255, rounded.
+    assert_eq!(colours, vec![Some([179.0; 3]), None, Some([77.0; 3])]);
+}
