@@ -3,7 +3,8 @@
 //! leaving out in each the discs where its objects were (`PlaceConfig::mask`), each channel's
 //! difference from it in units of the camera's noise at that level (`track::detect::noise_level`),
 //! and the mean shift that finds an object's centre (Eq. S17's centroid) on the weight above
-//! the frame's noise floor (Comaniciu & Meer 2002).
+//! the frame's noise floor (Comaniciu & Meer 2002), finished at the peak of the weight
+//! filtered with the object's disc.
 
 use std::collections::VecDeque;
 
@@ -173,7 +174,10 @@ impl<'a> Foreground<'a> {
         let mut to = Vec::with_capacity(seeds.len());
         for &(at, radius) in seeds {
             let area = (std::f64::consts::PI * radius * radius).round() as usize;
-            match self.place(at, area.max(1), cfg) {
+            // The mean shift's centre: the disc that holds the most foreground there may
+            // reach across to the other object (each seed is placed alone).
+            let placed = self.mean_shift_jointly(&[(at, area.max(1))], cfg).pop();
+            match placed.unwrap_or_else(|| Placement::Kept("no region".into())) {
                 Placement::Moved { to: p } => to.push(p),
                 _ => return None,
             }
@@ -188,33 +192,72 @@ impl<'a> Foreground<'a> {
         Some(to)
     }
 
-    /// Mean shift of the weight from `start` in a disc of the equivalent radius of `area`:
-    /// the new centre (`Moved`), a centre too far from `start` (`Far`), or why there is none
-    /// (`Kept`).
-    pub(super) fn place(&self, start: (f64, f64), area: usize, cfg: &PlaceConfig) -> Placement {
-        self.place_jointly(&[(start, area)], cfg)
-            .pop()
-            .unwrap_or_else(|| Placement::Kept("no region".into()))
-    }
-
-    /// The mean shift of several regions at once (a crowd: two movers side by side, whose
-    /// flows' halos join): in each step every region's disc weighs only the pixels nearer its
-    /// own centre than any other's of at least a quarter of its area, in units of each one's
-    /// radius, so each converges on its own object rather than on whichever is brighter. Each
-    /// gets `place`'s verdict; two whose centres end on one blob of foreground (no valley
+    /// Each region (one, or a crowd: two movers side by side, whose flows' halos join) placed
+    /// by the mean shift of the weight from its flow centroid in a disc of its equivalent
+    /// radius: in each step every region's disc weighs only the pixels nearer its own centre
+    /// than any other's of at least a quarter of its area, in units of each one's radius, so
+    /// each converges on its own object rather than on whichever is brighter. Each gets a
+    /// verdict: the new centre (`Moved`), a centre too far from its start (`Far`), or why
+    /// there is none (`Kept`); two whose centres end on one blob of foreground (no valley
     /// between them, `valley_between`: one object, or two that touch) are both kept at their
     /// flow centroids, since the frame cannot tell them apart there, except that a fragment of
-    /// less than a quarter of the other's area leaves the other placed. One region is `place`.
+    /// less than a quarter of the other's area leaves the other placed. A placed region's
+    /// centre is then the disc's that holds the most weight near the mean shift's.
     pub(super) fn place_jointly(
         &self,
         starts: &[((f64, f64), usize)],
         cfg: &PlaceConfig,
     ) -> Vec<Placement> {
-        let (w, h) = (self.current.width, self.current.height);
-        let radii: Vec<f64> = starts
+        let mut out = self.mean_shift_jointly(starts, cfg);
+        let radii: Vec<f64> = starts.iter().map(|&(_, area)| disc_radius(area)).collect();
+        // The mean shift's fixed point leans to the part of a textured object that differs
+        // most from the background (a disc half like the background behind it ends centred
+        // on the other half); the disc of the same radius that holds the most weight (the
+        // peak of the foreground filtered with the disc, a matched filter's) does not: moved
+        // off the object, it loses object pixels for background. A placed region's centre is
+        // that disc's, sought within `max_shift` of its radius of the mean shift's centre on
+        // the pixels nearer it than the other regions' centres (as above); the verdicts stay
+        // the mean shift's.
+        let centres: Vec<Option<(f64, f64)>> = out
             .iter()
-            .map(|&(_, area)| (area as f64 / std::f64::consts::PI).sqrt().max(2.0))
+            .map(|p| match p {
+                Placement::Moved { to } | Placement::Far { to, .. } => Some(*to),
+                _ => None,
+            })
             .collect();
+        for (i, o) in out.iter_mut().enumerate() {
+            let Placement::Moved { to } = o else {
+                continue;
+            };
+            let p = *to;
+            let mine = |x: f64, y: f64| {
+                let own = (x - p.0).hypot(y - p.1) / radii[i];
+                centres
+                    .iter()
+                    .zip(&radii)
+                    .zip(starts)
+                    .enumerate()
+                    .all(|(j, ((q, r), s))| match q {
+                        Some(q) if j != i && 4 * s.1 >= starts[i].1 => {
+                            (x - q.0).hypot(y - q.1) / r >= own
+                        }
+                        _ => true,
+                    })
+            };
+            let reach = (cfg.max_shift * radii[i]).ceil().max(1.0) as i64;
+            *to = self.densest_disc(p, radii[i], reach, mine);
+        }
+        out
+    }
+
+    /// `place_jointly`'s mean shift and verdicts, the centres where the mean shift ends.
+    fn mean_shift_jointly(
+        &self,
+        starts: &[((f64, f64), usize)],
+        cfg: &PlaceConfig,
+    ) -> Vec<Placement> {
+        let (w, h) = (self.current.width, self.current.height);
+        let radii: Vec<f64> = starts.iter().map(|&(_, area)| disc_radius(area)).collect();
         let mut at: Vec<(f64, f64)> = starts.iter().map(|&(c, _)| c).collect();
         // Per region: Σ weight and the pixels with weight in its final disc.
         let mut last = vec![(0.0f64, 0usize); starts.len()];
@@ -317,6 +360,78 @@ impl<'a> Foreground<'a> {
         out
     }
 
+    /// The centre, within `reach` px of `from` in x and y, of the disc of `radius` that holds
+    /// the most weight over the pixels `mine` admits: the best of the whole-pixel centres,
+    /// moved by a parabola through its neighbours on each axis (at most half a pixel);
+    /// `from` where no disc there holds any.
+    fn densest_disc(
+        &self,
+        from: (f64, f64),
+        radius: f64,
+        reach: i64,
+        mine: impl Fn(f64, f64) -> bool,
+    ) -> (f64, f64) {
+        let (w, h) = (self.current.width as i64, self.current.height as i64);
+        let (bx, by) = (from.0.round() as i64, from.1.round() as i64);
+        let r = radius.floor() as i64;
+        // The weights of the pixels any disc can reach, 0 outside the frame or not `mine`.
+        let m = reach + r + 1;
+        let side = (2 * m + 1) as usize;
+        let mut patch = vec![0.0f64; side * side];
+        for (k, v) in patch.iter_mut().enumerate() {
+            let (x, y) = (bx - m + (k % side) as i64, by - m + (k / side) as i64);
+            if x >= 0 && y >= 0 && x < w && y < h && mine(x as f64, y as f64) {
+                *v = self.weight(x as usize, y as usize);
+            }
+        }
+        let offsets: Vec<(i64, i64)> = (-r..=r)
+            .flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)))
+            .filter(|&(dx, dy)| ((dx * dx + dy * dy) as f64) <= radius * radius)
+            .collect();
+        let sum = |ox: i64, oy: i64| -> f64 {
+            offsets
+                .iter()
+                .map(|&(dx, dy)| patch[((m + oy + dy) as usize) * side + (m + ox + dx) as usize])
+                .sum()
+        };
+        let n = (2 * reach + 1) as usize;
+        let sums: Vec<f64> = (0..n * n)
+            .map(|k| sum((k % n) as i64 - reach, (k / n) as i64 - reach))
+            .collect();
+        let Some((best, &top)) = sums
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .filter(|(_, v)| **v > 0.0)
+        else {
+            return from;
+        };
+        let (ix, iy) = (best % n, best / n);
+        let at = |x: usize, y: usize| sums[y * n + x];
+        let vertex = |lo: f64, hi: f64| {
+            let den = lo - 2.0 * top + hi;
+            if den < 0.0 {
+                (0.5 * (lo - hi) / den).clamp(-0.5, 0.5)
+            } else {
+                0.0
+            }
+        };
+        let sx = if ix > 0 && ix + 1 < n {
+            vertex(at(ix - 1, iy), at(ix + 1, iy))
+        } else {
+            0.0
+        };
+        let sy = if iy > 0 && iy + 1 < n {
+            vertex(at(ix, iy - 1), at(ix, iy + 1))
+        } else {
+            0.0
+        };
+        (
+            (bx + ix as i64 - reach) as f64 + sx,
+            (by + iy as i64 - reach) as f64 + sy,
+        )
+    }
+
     /// Whether the foreground on the straight path from `p` to `q` falls below half the
     /// weight at the lower of the two (a valley between two modes, as two peaks are told apart
     /// at half maximum): two objects, where one blob of foreground is one object or two that
@@ -336,6 +451,12 @@ impl<'a> Foreground<'a> {
             at(p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1)) < floor
         })
     }
+}
+
+/// The radius of the disc a region of `area` pixels is placed with: its equivalent radius,
+/// at least 2 px.
+fn disc_radius(area: usize) -> f64 {
+    (area as f64 / std::f64::consts::PI).sqrt().max(2.0)
 }
 
 /// The median of |v − b| over the 8-bit `samples` (at most 255; 0 for none), the two middle

@@ -130,10 +130,11 @@ fn a_slow_mover_is_left_out_of_its_own_background() {
         }
     };
     let (with, without) = (error(1.5), error(0.0));
-    // 2.2 against 3.3 px here: the textured background's contrast leans both modes.
-    assert!(with < 3.0, "masked: {with:.2} px off");
+    // 1.10 against 1.23 px here (the mean shift alone: 2.2 against 3.3): the disc that holds
+    // the most foreground takes the ghost's share only at the disc's edge.
+    assert!(with < 1.5, "masked: {with:.2} px off");
     assert!(
-        without > with + 0.5,
+        without >= with,
         "unmasked {without:.2} px off, masked {with:.2}"
     );
 }
@@ -193,6 +194,55 @@ fn a_disc_over_a_dark_quiet_background_and_a_bright_noisy_one_is_placed_on_its_c
     assert!(
         levels > own + 1.5,
         "in levels {levels:.2} px off, in noise {own:.2}"
+    );
+}
+
+/// Frame `n` of a grey background of 60 levels (σ = 3) with a disc of radius 12 at
+/// `centre(n)` whose left half is 120 levels (20 σ from the background) and right half 72
+/// (4 σ): a disc half camouflaged, as a mover's texture often is in part.
+fn half_camouflaged(n: usize, centre: impl Fn(usize) -> (f64, f64), seed: u64) -> ColourFrame {
+    let mut rng = crate::rng::stream(seed, &[n as u64]);
+    let mut img = Image::zeros(3, H, W);
+    let (cx, cy) = centre(n);
+    for y in 0..H {
+        for x in 0..W {
+            let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+            let v = match (dx.hypot(dy) <= 12.0, dx < 0.0) {
+                (false, _) => 60.0,
+                (true, true) => 120.0,
+                (true, false) => 72.0,
+            };
+            for c in 0..3 {
+                let z: f64 = Distribution::<f64>::sample(&StandardNormal, &mut rng);
+                img.set(c, y, x, ((v + 3.0 * z) / 255.0) as f32);
+            }
+        }
+    }
+    ColourFrame::new(&img)
+}
+
+#[test]
+fn a_disc_half_like_its_background_is_placed_near_its_centre() {
+    // The disc moves down; frame n's flow blob sits on it.
+    let down = |n: usize| (W as f64 / 2.0, 14.0 + 1.2 * n as f64);
+    let (n, area) = (30, (std::f64::consts::PI * 144.0) as usize);
+    let truth = down(n);
+    let mut m = StillBackground::new(PlaceConfig::default()).expect("valid settings");
+    for k in 0..n {
+        m.place(&half_camouflaged(k, down, 9), 0.0, &[]);
+    }
+    let f = half_camouflaged(n, down, 9);
+    let to = match &m.place(&f, 0.0, &[(truth, area)])[0] {
+        Placement::Moved { to } | Placement::Far { to, .. } => *to,
+        other => panic!("no centre: {other:?}"),
+    };
+    // Half a disc's centroid lies 4r / 3π = 5.1 px from the disc's centre, and the mean shift
+    // alone ends 5.6 px off, on the bright half; the disc that holds the most foreground
+    // (3.3 px off: the box of the difference spreads the bright half past the disc's edge).
+    let err = (to.0 - truth.0).hypot(to.1 - truth.1);
+    assert!(
+        err < 4.0,
+        "placed at {to:?}, the disc at {truth:?}: {err:.2} px off"
     );
 }
 
