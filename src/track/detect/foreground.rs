@@ -176,9 +176,8 @@ impl<'a> Foreground<'a> {
             let area = (std::f64::consts::PI * radius * radius).round() as usize;
             // The mean shift's centre: the disc that holds the most foreground there may
             // reach across to the other object (each seed is placed alone).
-            let placed = self.mean_shift_jointly(&[(at, area.max(1))], cfg).pop();
-            match placed.unwrap_or_else(|| Placement::Kept("no region".into())) {
-                Placement::Moved { to: p } => to.push(p),
+            match self.mean_shift_jointly(&[(at, area.max(1))], cfg).pop() {
+                Some(Placement::Moved { to: p }) => to.push(p),
                 _ => return None,
             }
         }
@@ -230,20 +229,7 @@ impl<'a> Foreground<'a> {
                 continue;
             };
             let p = *to;
-            let mine = |x: f64, y: f64| {
-                let own = (x - p.0).hypot(y - p.1) / radii[i];
-                centres
-                    .iter()
-                    .zip(&radii)
-                    .zip(starts)
-                    .enumerate()
-                    .all(|(j, ((q, r), s))| match q {
-                        Some(q) if j != i && 4 * s.1 >= starts[i].1 => {
-                            (x - q.0).hypot(y - q.1) / r >= own
-                        }
-                        _ => true,
-                    })
-            };
+            let mine = |x: f64, y: f64| owns(i, (x, y), &centres, &radii, starts);
             let reach = (cfg.max_shift * radii[i]).ceil().max(1.0) as i64;
             *to = self.densest_disc(p, radii[i], reach, mine);
         }
@@ -264,22 +250,12 @@ impl<'a> Foreground<'a> {
         let mut done = vec![false; starts.len()];
         for _ in 0..cfg.iterations {
             let mut next = at.clone();
+            let centres: Vec<Option<(f64, f64)>> = at.iter().copied().map(Some).collect();
             for (i, &p) in at.iter().enumerate() {
                 if done[i] {
                     continue;
                 }
-                // A member of less than a quarter of this one's area (a fragment beside its
-                // object, or of its halo) takes nothing from it.
-                let mine = |x: f64, y: f64| {
-                    let own = (x - p.0).hypot(y - p.1) / radii[i];
-                    at.iter()
-                        .zip(&radii)
-                        .zip(starts)
-                        .enumerate()
-                        .all(|(j, ((q, r), s))| {
-                            j == i || 4 * s.1 < starts[i].1 || (x - q.0).hypot(y - q.1) / r >= own
-                        })
-                };
+                let mine = |x: f64, y: f64| owns(i, (x, y), &centres, &radii, starts);
                 let (mut sw, mut sx, mut sy, mut cover) = (0.0, 0.0, 0.0, 0usize);
                 for (x, y) in disc(p, radii[i], w, h) {
                     let wt = self.weight(x, y);
@@ -451,6 +427,34 @@ impl<'a> Foreground<'a> {
             at(p.0 + t * (q.0 - p.0), p.1 + t * (q.1 - p.1)) < floor
         })
     }
+}
+
+/// Whether pixel `at` counts for region `i` of a crowd (`starts`, each placed at `centres`
+/// with a disc of `radii`): it lies no nearer, in units of each one's radius, to any other
+/// placed region of at least a quarter of `i`'s area (a smaller one, a fragment beside its
+/// object or of its halo, takes nothing from it).
+fn owns(
+    i: usize,
+    at: (f64, f64),
+    centres: &[Option<(f64, f64)>],
+    radii: &[f64],
+    starts: &[((f64, f64), usize)],
+) -> bool {
+    let Some(p) = centres[i] else {
+        return true;
+    };
+    let own = (at.0 - p.0).hypot(at.1 - p.1) / radii[i];
+    centres
+        .iter()
+        .zip(radii)
+        .zip(starts)
+        .enumerate()
+        .all(|(j, ((q, r), s))| match q {
+            Some(q) if j != i && 4 * s.1 >= starts[i].1 => {
+                (at.0 - q.0).hypot(at.1 - q.1) / r >= own
+            }
+            _ => true,
+        })
 }
 
 /// The radius of the disc a region of `area` pixels is placed with: its equivalent radius,
