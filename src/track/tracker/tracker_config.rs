@@ -89,9 +89,10 @@ pub struct TrackerConfig {
     pub reid_frames: usize,
     /// A track being confirmed takes the ID of an ended (or a coasting) track when it was born
     /// after that track was last seen, within `gate_px` + 1.25 × the track's top speed × the
-    /// frames between (`reid::REACH_SPEED_FACTOR`), and its mean colour lies within this many of the old track's standard
-    /// deviations (`appearance_floor` at least); of several, the nearest in colour. Both need
-    /// colours (frames).
+    /// frames between (`reid::REACH_SPEED_FACTOR`), and its mean colour lies within this many
+    /// of the old track's standard deviations (`appearance_floor` at least); of several, the
+    /// one of least cost, colour distance over `reid_k` plus distance over reach
+    /// (`reid::reid_cost`). Both need colours (frames).
     pub reid_k: f64,
     /// A weak detection (`track::detect::retry`: a region that passed the photometric test only with
     /// the motion the frames confirm) may continue a tentative track, one that a detection

@@ -1,13 +1,13 @@
 //! Re-identification at confirmation (DeepSORT's, with the region's mean colour as the
 //! descriptor): a track just confirmed takes back the ID of an ended or coasting track whose
-//! object it may be (`reid_distance`), the nearest in colour.
+//! object it may be (`reid_cost`), the likeliest in colour and distance.
 
 use super::Tracker;
-use crate::track::tracker::reid::{Candidate, reid_distance};
+use crate::track::tracker::reid::{Candidate, reid_cost};
 
 impl Tracker {
     /// The ID that track `i`, confirmed in `frame`, takes back: that of the ended or coasting
-    /// track whose object it may be (`reid_distance`) and nearest to it in colour. A coasting
+    /// track whose object it may be at the least cost (`reid_cost`: colour and distance). A coasting
     /// track that gives up its ID ends; an ended one leaves the memory.
     pub(super) fn reidentify(&mut self, i: usize, frame: usize) -> Option<(usize, bool)> {
         if self.config.reid_frames == 0 {
@@ -15,7 +15,7 @@ impl Tracker {
         }
         let t = &self.tracks[i];
         // The new track's mean colour is the query, however few colours it has: the distance
-        // is measured in the old track's spread, which needs its own (`reid_distance`). A track
+        // is measured in the old track's spread, which needs its own (`reid_cost`). A track
         // confirmed on a partial region has had only four whole ones (seen on a spiral lost for
         // 17 frames and found again with a new ID).
         let colour = t.appearance.as_ref()?.mean();
@@ -30,7 +30,7 @@ impl Tracker {
             };
             let fresh = o.id == 0 || j == i || !o.confirmed || o.misses == 0;
             let k = (!fresh && frame.saturating_sub(o.last_seen.0) <= config.reid_frames)
-                .then(|| reid_distance(&c, born, colour, gate, floor, k))??;
+                .then(|| reid_cost(&c, born, colour, gate, floor, k))??;
             Some((k, Ok(j)))
         });
         let ended = self.lost.iter().enumerate().filter_map(|(j, l)| {
@@ -39,7 +39,7 @@ impl Tracker {
                 top_speed: l.top_speed,
                 appearance: &l.appearance,
             };
-            Some((reid_distance(&c, born, colour, gate, floor, k)?, Err(j)))
+            Some((reid_cost(&c, born, colour, gate, floor, k)?, Err(j)))
         });
         let best = coasting.chain(ended).min_by(|a, b| a.0.total_cmp(&b.0))?;
         Some(match best.1 {

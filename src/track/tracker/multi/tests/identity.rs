@@ -187,3 +187,49 @@ fn a_track_confirmed_with_few_colours_still_takes_its_id_back() {
         "A: {on_a:?}"
     );
 }
+
+/// Two objects of nearly one colour: A (3 px/frame to the right along y = 20) is seen in
+/// frames 0–29 and then not again (it left); B (2 px/frame to the left along y = 100) is
+/// seen in frames 0–39, hidden in 40–59 and seen again from frame 60 where it went, its
+/// colour then measured a little off (lighting), nearer A's than its own. Both old tracks
+/// could have got to B's new track in their colour; B's, 42 px away after 21 frames, is
+/// likelier than A's, 108 px away after 31 (the two-disc 320×240 clip's ID switch).
+#[test]
+fn a_returning_object_takes_the_id_of_the_track_that_could_reach_it_more_easily() {
+    let a_colour = |n: usize| [200.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
+    let b_colour = |n: usize| [204.0 + (n % 3) as f64, 40.0, 40.0 - (n % 2) as f64];
+    let mut tr = Tracker::new(TrackerConfig::default()).unwrap();
+    let mut on_b = Vec::new();
+    for n in 0..90 {
+        let a = (20.0 + 3.0 * n as f64, 20.0);
+        let b = (300.0 - 2.0 * n as f64, 100.0);
+        let mut dets = Vec::new();
+        if n < 30 {
+            dets.push(Region {
+                colour: Some(a_colour(n)),
+                ..det(a.0, a.1, 3.0, 0.0)
+            });
+        }
+        if !(40..60).contains(&n) {
+            let colour = if n < 40 {
+                b_colour(n)
+            } else {
+                [201.0, 40.0, 40.0]
+            };
+            dets.push(Region {
+                colour: Some(colour),
+                ..det(b.0, b.1, -2.0, 0.0)
+            });
+        }
+        let out = tr.step(n, &dets, 1).unwrap();
+        for t in &out {
+            let (x, y) = t.estimate.centroid;
+            if (x - b.0).hypot(y - b.1) < 4.0 {
+                on_b.push((n, t.id));
+            }
+        }
+    }
+    let first = on_b.first().map(|&(_, id)| id);
+    assert!(on_b.iter().all(|&(_, id)| Some(id) == first), "B: {on_b:?}");
+    assert!(on_b.iter().any(|&(n, _)| n >= 70), "B seen again: {on_b:?}");
+}
