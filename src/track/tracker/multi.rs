@@ -214,6 +214,7 @@ impl Tracker {
                 misses: t.misses,
                 confirmed: t.confirmed,
                 appearance: t.appearance.as_ref(),
+                radius: median(&t.areas).map(|a| (a / std::f64::consts::PI).sqrt()),
             })
             .collect();
         let Association { matches, shared } = associate(&view, detections, &self.config);

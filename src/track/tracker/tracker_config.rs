@@ -14,7 +14,8 @@ pub struct TrackerConfig {
     pub mtp: MtpConfig,
     /// Largest distance (px) between a prediction and a detection that may be matched; it
     /// widens by half for every frame a track has coasted, so a track re-acquires its object
-    /// after an occlusion or a merge.
+    /// after an occlusion or a merge. A small object's gate is narrower: at most
+    /// `associate::GATE_RADII` of its radius.
     pub gate_px: f64,
     /// Consecutive hits before a new track is reported (the confirmation window).
     pub confirm: usize,
