@@ -10,16 +10,19 @@
 # defaults to 4, START to zero and SCALE (`pins infer --scale`: the network at this multiple of
 # the frames' size) to 1; no refinement. The tracker's flow is mms-small-real@4@zero@2. `dis` is OpenCV's DIS
 # medium (scripts/dis_flows.py; needs opencv-python-headless). PINS names the binary (default:
-# pins on the PATH), PYTHON the interpreter (default python3).
+# pins on the PATH), PYTHON the interpreter (default python3), EVAL the pairs' generator config
+# (default experiments/movers_eval.json; experiments/movers_eval_320.json: a 320x240 camera's,
+# whose tracker runs MMS at @4@zero@4).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 die() { echo "movers_flow: $*" >&2; exit 1; }
 [ $# -ge 2 ] || die "usage: scripts/movers_flow.sh OUT METHOD [METHOD ...] (METHOD: WEIGHTS[@ITERS[@START[@SCALE]]] or dis)"
 PINS=${PINS:-pins}
 PYTHON=${PYTHON:-python3}
+EVAL=${EVAL:-experiments/movers_eval.json}
 out=$1; shift
 data=$out/pairs
-"$PINS" generate --config experiments/movers_eval.json --out "$data" --quiet >/dev/null
+"$PINS" generate --config "$EVAL" --out "$data" --quiet >/dev/null
 n=$(ls "$data"/*_flow.flo | wc -l)
 [ "$n" -gt 0 ] || die "no pairs in $data"
 for method in "$@"; do

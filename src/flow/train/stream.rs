@@ -20,6 +20,13 @@
 //! (the network's feature normalisation takes a whole frame's statistics, and a frame several
 //! times its training crops is otherwise out of what it saw).
 //!
+//! A source may also name an `"upscale"` factor in [1, 4]: its pairs, made at the generator's
+//! size (the camera's blur and noise at its pixels), are made larger by that factor as `pins
+//! infer --scale` makes frames larger before the network (`flow::scale`: bilinear, the flow's
+//! vectors multiplied with the size). The tracker runs MMS at 2 to 4 times a camera's frame
+//! (`flow.scale`), where a frame is smooth, its noise in blobs of several pixels and a small
+//! mover a few dozen pixels across; such a source is that input with exact flow.
+//!
 //! The validation pairs are a fixed set, apart from every training pair: pair `j` comes from
 //! the source whose share of the weights holds `(j + ½) / n` (each source in proportion), at
 //! sample index `VAL_BASE + j`.
@@ -39,6 +46,9 @@ use serde::{Deserialize, Serialize};
 use crate::dataset::{Generator, GeneratorConfig, SceneSpec};
 use crate::error::Result;
 use crate::flow::data::DataFingerprint;
+use crate::flow::resample::resize_flow;
+use crate::flow::scale::MAX_SCALE;
+use crate::imaging::resize::{resize_to, scaled_size};
 use crate::rng;
 use crate::types::{Flow, Image};
 
@@ -61,6 +71,10 @@ pub struct StreamSource {
     /// The crop `[h, w]` its pairs are cut to, when not the run's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crop: Option<[usize; 2]>,
+    /// Its pairs made larger by this factor in [1, `flow::scale::MAX_SCALE`] after the camera
+    /// (bilinear, the flow's vectors scaled with the size), as MMS sees frames run at a scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub upscale: Option<f64>,
 }
 
 /// A stream file.
@@ -83,6 +97,8 @@ pub struct Stream {
     frames: Vec<(usize, usize)>,
     /// Each source's own crop, if it has one.
     crops: Vec<Option<[usize; 2]>>,
+    /// Each source's upscale factor, if it has one.
+    upscales: Vec<Option<f64>>,
 }
 
 /// Whether `path` names a stream file rather than a folder of pairs.
@@ -113,6 +129,7 @@ impl Stream {
         let mut acc = 0.0;
         let mut frames = Vec::new();
         let mut crops = Vec::new();
+        let mut upscales = Vec::new();
         use sha2::{Digest, Sha256};
         let mut hash = Sha256::new();
         for (k, source) in config.sources.iter().enumerate() {
@@ -149,8 +166,20 @@ impl Stream {
                     ),
                 ));
             }
-            frames.push((height, width));
+            if let Some(u) = source.upscale
+                && !(u.is_finite() && (1.0..=MAX_SCALE).contains(&u))
+            {
+                return Err(crate::io::in_config(
+                    path,
+                    format!("sources[{k}].upscale: must be in [1, {MAX_SCALE}], got {u}"),
+                ));
+            }
+            frames.push(match source.upscale {
+                Some(u) => scaled_size(height, width, u),
+                None => (height, width),
+            });
             crops.push(source.crop);
+            upscales.push(source.upscale);
             // The data's identity: the share, the config as written (its keys in order, so
             // neither its layout nor a move of the checkout counts; a knob added to the code
             // later, off by default, leaves it as it was), the photographs, a probe.
@@ -168,6 +197,11 @@ impl Stream {
                 hash.update(b"crop");
                 hash.update((c[0] as u64).to_le_bytes());
                 hash.update((c[1] as u64).to_le_bytes());
+            }
+            // So is its upscale factor (absent, nothing is hashed, as for the crop).
+            if let Some(u) = source.upscale {
+                hash.update(b"upscale");
+                hash.update(u.to_le_bytes());
             }
             if let Some(photos) = photos {
                 for p in photos.library()?.iter() {
@@ -204,6 +238,7 @@ impl Stream {
             },
             frames,
             crops,
+            upscales,
         })
     }
 
@@ -296,10 +331,18 @@ impl Stream {
         self.make(k, VAL_BASE + j)
     }
 
-    /// Sample `index` of source `k`, in colour; a still scene's flow is zero everywhere.
+    /// Sample `index` of source `k`, in colour, made larger by the source's upscale factor; a
+    /// still scene's flow is zero everywhere.
     fn make(&self, k: usize, index: usize) -> Result<(Image, Image, Flow)> {
-        let (a, b, flow) = self.generators[k].pair(index)?;
-        let flow = flow.unwrap_or_else(|| Flow::zeros(a.height(), a.width()));
+        let (mut a, mut b, flow) = self.generators[k].pair(index)?;
+        let mut flow = flow.unwrap_or_else(|| Flow::zeros(a.height(), a.width()));
+        if let Some(u) = self.upscales[k] {
+            // [c, h, w] → [c, h·u, w·u] as `flow::scale::predict_scaled` resizes its frames;
+            // the flow [2, h·u, w·u] in the larger frame's pixels.
+            let (h, w) = scaled_size(a.height(), a.width(), u);
+            (a, b) = (resize_to(&a, h, w)?, resize_to(&b, h, w)?);
+            flow = resize_flow(&flow, h, w)?;
+        }
         Ok((
             crate::flow::data::to_rgb(a),
             crate::flow::data::to_rgb(b),
@@ -621,6 +664,95 @@ mod tests {
                 .expect("refused")
                 .to_string();
             assert!(says.iter().all(|w| err.contains(w)), "{name}: {err}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// An upscaled source makes the generator's pair made larger, as `flow::scale` makes frames
+    /// larger before the network: each image resized bilinearly, the flow resized with its
+    /// vectors multiplied by the factor; a crop its frames hold only once larger is accepted; the
+    /// factor is part of the data's identity; a factor outside [1, 4] is refused by name.
+    #[test]
+    fn an_upscaled_source_makes_its_pairs_larger_with_their_flow() {
+        use crate::flow::train::{TrainConfig, source::TrainData};
+        let dir = folder("upscale");
+        write(&dir, "a.json", SMALL);
+        let mix = write(
+            &dir,
+            "mix.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1, "upscale": 2, "crop": [64, 64]}]}"#,
+        );
+        let stream = Stream::open(&mix).expect("open");
+        assert_eq!(stream.smallest_frame(), (64, 80));
+        let (a, b, f) = stream.val_pair(0, 1).expect("val");
+        let generator =
+            Generator::new(GeneratorConfig::from_file(&dir.join("a.json")).expect("config"))
+                .expect("generator");
+        let (ga, gb, gf) = generator.pair(VAL_BASE).expect("sample");
+        let gf = gf.expect("a chairs scene has flow");
+        assert_eq!((a.shape(), b.shape()), ((3, 64, 80), (3, 64, 80)));
+        let grow = |img: &Image| crate::flow::data::to_rgb(resize_to(img, 64, 80).expect("resize"));
+        assert_eq!(a.data(), grow(&ga).data());
+        assert_eq!(b.data(), grow(&gb).data());
+        // Inside the frame, a vector of the larger flow at pixel (X, Y) is twice the generator's
+        // flow read bilinearly at the same place in the scene, ((X + ½)/2 − ½, (Y + ½)/2 − ½).
+        let (gu, gv) = (gf.u(), gf.v());
+        let (u, v) = (f.u(), f.v());
+        let read = |plane: &[f32], x: f32, y: f32| {
+            let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+            let (tx, ty) = (x - x0 as f32, y - y0 as f32);
+            let at = |x: usize, y: usize| plane[y * 40 + x];
+            (1.0 - ty) * ((1.0 - tx) * at(x0, y0) + tx * at(x0 + 1, y0))
+                + ty * ((1.0 - tx) * at(x0, y0 + 1) + tx * at(x0 + 1, y0 + 1))
+        };
+        let mut checked = 0;
+        for y in 1..63 {
+            for x in 1..79 {
+                let (sx, sy) = ((x as f32 + 0.5) / 2.0 - 0.5, (y as f32 + 0.5) / 2.0 - 0.5);
+                let j = y * 80 + x;
+                let (eu, ev) = (2.0 * read(gu, sx, sy), 2.0 * read(gv, sx, sy));
+                assert!(
+                    (u[j] - eu).abs() < 1e-3 && (v[j] - ev).abs() < 1e-3,
+                    "({x}, {y}): ({}, {}) against ({eu}, {ev})",
+                    u[j],
+                    v[j]
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 62 * 78);
+        // The 32×40 frames hold the 64×64 crop only once made larger; without the factor they
+        // are refused, and the factor is part of the data's identity.
+        let config = TrainConfig {
+            crop: [64, 64],
+            ..TrainConfig::default()
+        };
+        let data = TrainData::open(&mix, &config).expect("open");
+        let other = write(
+            &dir,
+            "other.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1, "upscale": 3, "crop": [64, 64]}]}"#,
+        );
+        assert_ne!(
+            data.fingerprint,
+            TrainData::open(&other, &config).expect("open").fingerprint
+        );
+        let plain = write(
+            &dir,
+            "plain.json",
+            r#"{"sources": [{"generator": "a.json", "weight": 1, "crop": [64, 64]}]}"#,
+        );
+        assert!(TrainData::open(&plain, &config).is_err());
+        for bad in ["0.5", "5", "-2"] {
+            let text = format!(
+                r#"{{"sources": [{{"generator": "a.json", "weight": 1, "upscale": {bad}}}]}}"#
+            );
+            let file = write(&dir, "bad.json", &text);
+            let err = Stream::open(&file).err().expect("refused").to_string();
+            assert!(
+                err.contains("sources[0].upscale") && err.contains(bad),
+                "{bad}: {err}"
+            );
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
