@@ -14,6 +14,9 @@ pixels, not a mean of per-image means):
   ae_deg  mean angle in degrees between (u, v, 1) and (ug, vg, 1) (Baker et al. 2011), with
           the cosine clamped to [-1, 1]
   px1/3/5 fraction of pixels with end-point error < 1, 3, 5 px
+  by_speed {"pixels": [n, n, n], "epe": [e, e, e]}: the EPE over the pixels whose ground-truth
+          speed is below 10 px, from 10 to below 40, and 40 or more (MPI-Sintel's s0-10,
+          s10-40, s40+; 0 where a class has no pixel)
 A pixel is valid when both ground-truth components are finite and below 1e9 in magnitude
 (Middlebury's unknown-flow marker).
 
@@ -34,9 +37,9 @@ Output JSON (`pins eval --peers` reads methods[].name, .epe and .ms_per_pair; `p
 reads the rest):
   {"data": "...", "pairs": N, "opencv": "4.x", "threads": 1,
    "methods": [{"name": "OpenCV DIS medium", "epe": .., "ae_deg": .., "px1": .., "px3": ..,
-                "px5": .., "ms_per_pair": ..,
+                "px5": .., "by_speed": {..}, "ms_per_pair": ..,
                 "per_pair": [{"name": "00000", "pixels": .., "epe": .., "ae_deg": .., "px1": ..,
-                              "px3": .., "px5": .., "ms": ..}, ...]}, ...],
+                              "px3": .., "px5": .., "by_speed": {..}, "ms": ..}, ...]}, ...],
    "zero_flow": {same fields as a method, ms 0; per_pair also has mean_gt}}
 """
 import argparse
@@ -58,6 +61,8 @@ except ImportError:
 
 FLO_MAGIC = 202021.25
 UNKNOWN_THRESHOLD = 1e9
+# Ground-truth speeds (px) that open MPI-Sintel's classes s10-40 and s40+ (metrics.rs).
+SPEED_CLASS_EDGES = [10.0, 40.0]
 
 
 class DataError(Exception):
@@ -137,6 +142,8 @@ class Sums:
         self.epe = 0.0
         self.ae = 0.0
         self.w1 = self.w3 = self.w5 = 0
+        self.class_pixels = [0, 0, 0]
+        self.class_epe = [0.0, 0.0, 0.0]
 
     def add(self, pred, gt, where):
         if pred.shape != gt.shape:
@@ -156,6 +163,10 @@ class Sums:
         self.w1 += int((e < 1.0).sum())
         self.w3 += int((e < 3.0).sum())
         self.w5 += int((e < 5.0).sum())
+        cls = np.searchsorted(SPEED_CLASS_EDGES, np.sqrt(gu * gu + gv * gv), side="right")
+        for c in range(3):
+            self.class_pixels[c] += int((cls == c).sum())
+            self.class_epe[c] += float(e[cls == c].sum())
 
     def merge(self, o):
         self.pixels += o.pixels
@@ -164,11 +175,16 @@ class Sums:
         self.w1 += o.w1
         self.w3 += o.w3
         self.w5 += o.w5
+        for c in range(3):
+            self.class_pixels[c] += o.class_pixels[c]
+            self.class_epe[c] += o.class_epe[c]
 
     def scores(self):
         n = max(self.pixels, 1)
+        by_speed = {"pixels": list(self.class_pixels),
+                    "epe": [e / max(k, 1) for e, k in zip(self.class_epe, self.class_pixels)]}
         return {"epe": self.epe / n, "ae_deg": self.ae / n,
-                "px1": self.w1 / n, "px3": self.w3 / n, "px5": self.w5 / n}
+                "px1": self.w1 / n, "px3": self.w3 / n, "px5": self.w5 / n, "by_speed": by_speed}
 
 
 def dis_method(preset):

@@ -83,7 +83,7 @@ fn check_runs(r: &Value, sets: &[&str], cameras: &[&str], iters: &[u64]) {
         Some(n) => format!("{}, {n} it", m["method"].as_str().unwrap()),
         None => m["method"].as_str().unwrap().to_string(),
     };
-    let check_rows = |rows: &Value, mean: f64, what: &str| {
+    let check_rows = |rows: &Value, mean: f64, pixels: u64, what: &str| {
         let rows = rows.as_array().unwrap();
         assert_eq!(
             rows.iter().map(label).collect::<Vec<_>>(),
@@ -98,6 +98,17 @@ fn check_runs(r: &Value, sets: &[&str], cameras: &[&str], iters: &[u64]) {
             assert!(
                 (0.0..=1.0).contains(&p1) && p1 <= p3 && p3 <= p5 && p5 <= 1.0,
                 "{m}"
+            );
+            // The speed classes (Rust's and the peers' script's) split the known pixels, and
+            // their EPEs weighed by their pixels are the whole EPE.
+            let b = &m["by_speed"];
+            let n: Vec<u64> = (0..3).map(|c| b["pixels"][c].as_u64().unwrap()).collect();
+            assert_eq!(n.iter().sum::<u64>(), pixels, "{what}: {m}");
+            let whole: f64 = (0..3).map(|c| f(&b["epe"][c]) * n[c] as f64).sum();
+            let epe = f(&m["epe"]);
+            assert!(
+                (whole / pixels as f64 - epe).abs() <= 1e-6 * (1.0 + epe),
+                "{what}: {m}"
             );
         }
         let zero = rows.last().unwrap();
@@ -123,7 +134,7 @@ fn check_runs(r: &Value, sets: &[&str], cameras: &[&str], iters: &[u64]) {
                 assert!(n > 0);
                 assert_eq!(p["pixels"].as_u64().unwrap(), n, "{set}/{cam}/{name}");
                 assert!((f(&p["mean_gt"]) - mean).abs() <= 1e-9 * (1.0 + mean));
-                check_rows(&p["methods"], mean, &format!("{set}/{cam}/{name}"));
+                check_rows(&p["methods"], mean, n, &format!("{set}/{cam}/{name}"));
                 // The set's MMS scores are the pixel-weighted means of its pairs'.
                 n_all += n;
                 sum_all += n as f64 * f(&p["methods"][0]["epe"]);
@@ -131,7 +142,12 @@ fn check_runs(r: &Value, sets: &[&str], cameras: &[&str], iters: &[u64]) {
             assert_eq!(run["pixels"].as_u64().unwrap(), n_all);
             let mms = f(&run["methods"][0]["epe"]);
             assert!((mms - sum_all / n_all as f64).abs() < 1e-9 * (1.0 + mms));
-            check_rows(&run["methods"], f(&run["mean_gt"]), &format!("{set}/{cam}"));
+            check_rows(
+                &run["methods"],
+                f(&run["mean_gt"]),
+                n_all,
+                &format!("{set}/{cam}"),
+            );
         }
     }
     let summary = r["summary"].as_array().unwrap();
@@ -194,6 +210,15 @@ fn tiny_benchmark_reports_every_set_method_and_pair() {
     );
     assert!(md.contains("No comparison with OpenCV DIS medium"), "{md}");
     assert!(md.contains("No iteration ratios"), "{md}");
+    // The EPE by speed: a column per camera and Sintel class, a row per method.
+    assert!(
+        md.contains("## EPE by ground-truth speed (px), all known pixels"),
+        "{md}"
+    );
+    for col in ["| clean s0-10 (", "| camera s10-40 (", "| camera s40+ ("] {
+        assert!(md.contains(col), "{col}: {md}");
+    }
+    assert!(md.contains("| mms-small 2 it |"), "{md}");
     for set in &sets {
         for cam in ["clean", "camera"] {
             assert!(md.contains(&format!("### {set}, {cam}: ")), "{set} {cam}");

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::data::FlowDataset;
 use super::infer::{Predictor, predict_flow};
-use super::metrics::{FlowErrorSums, FlowScores};
+use super::metrics::{EpeBySpeed, FlowErrorSums, FlowScores};
 use super::model::{Mms, MmsConfig};
 use crate::error::{Error, Result};
 use crate::types::{Flow, Image};
@@ -26,6 +26,9 @@ pub struct EvalRow {
     pub px3: f64,
     pub px5: f64,
     pub ms_per_pair: f64,
+    /// The EPE by ground-truth speed (Sintel's s0-10, s10-40, s40+; absent in older reports).
+    #[serde(default)]
+    pub by_speed: EpeBySpeed,
 }
 
 /// The method name of an MMS row: the model's name, with " + variational" for refined rows.
@@ -45,6 +48,9 @@ pub struct ZeroFlow {
     pub px1: f64,
     pub px3: f64,
     pub px5: f64,
+    /// Its EPE by speed class: each class's mean ground-truth speed.
+    #[serde(default)]
+    pub by_speed: EpeBySpeed,
 }
 
 /// One pair's scores: its size, how many pixels have known flow, the mean ground-truth speed
@@ -84,6 +90,7 @@ impl From<FlowScores> for ZeroFlow {
             px1: s.px1,
             px3: s.px3,
             px5: s.px5,
+            by_speed: s.by_speed,
         }
     }
 }
@@ -100,6 +107,7 @@ impl EvalRow {
             px3: s.px3,
             px5: s.px5,
             ms_per_pair: ms,
+            by_speed: s.by_speed,
         }
     }
 }
@@ -244,24 +252,45 @@ pub fn evaluate(predictor: &Predictor, data: &FlowDataset, iters: &[usize]) -> R
 }
 
 impl EvalReport {
-    /// The table, like Table S4 with a time column.
+    /// The table, like Table S4 with a time column, and the EPE by ground-truth speed in
+    /// MPI-Sintel's classes.
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "{} ({} parameters) on {} pairs of {}\n\n| iterations | EPE | AE (°) | 1 px | 3 px | 5 px | ms per pair |\n|---|---|---|---|---|---|---|\n",
+            "{} ({} parameters) on {} pairs of {}\n\n| iterations | EPE | AE (°) | 1 px | 3 px | 5 px | EPE s0-10 | s10-40 | s40+ | ms per pair |\n|---|---|---|---|---|---|---|---|---|---|\n",
             self.model, self.parameters, self.pairs, self.data
         );
         for r in &self.rows {
             let refined = if r.refined { " + variational" } else { "" };
             s += &format!(
-                "| {}{refined} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {:.0} |\n",
-                r.iters, r.epe, r.ae_deg, r.px1, r.px3, r.px5, r.ms_per_pair
+                "| {}{refined} | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {} | {:.0} |\n",
+                r.iters,
+                r.epe,
+                r.ae_deg,
+                r.px1,
+                r.px3,
+                r.px5,
+                speed_cells(&r.by_speed),
+                r.ms_per_pair
             );
         }
         let z = &self.zero_flow;
         s += &format!(
-            "| zero flow | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | 0 |\n",
-            z.epe, z.ae_deg, z.px1, z.px3, z.px5
+            "| zero flow | {:.3} | {:.2} | {:.3} | {:.3} | {:.3} | {} | 0 |\n",
+            z.epe,
+            z.ae_deg,
+            z.px1,
+            z.px3,
+            z.px5,
+            speed_cells(&z.by_speed)
         );
         s
     }
+}
+
+/// The three speed classes' EPE as table cells, "–" for a class without pixels.
+fn speed_cells(b: &EpeBySpeed) -> String {
+    (0..3)
+        .map(|c| b.get(c).map_or_else(|| "–".into(), |v| format!("{v:.3}")))
+        .collect::<Vec<String>>()
+        .join(" | ")
 }

@@ -5,6 +5,7 @@
 use std::fmt::Write;
 
 use super::report::{BenchRealReport, MethodScores, SetRun};
+use crate::flow::metrics::{EpeBySpeed, SPEED_CLASS_NAMES};
 
 /// The whole report as markdown; `command` is the command line that made it.
 pub fn markdown(r: &BenchRealReport, command: &str) -> String {
@@ -58,6 +59,7 @@ pub fn markdown(r: &BenchRealReport, command: &str) -> String {
         let _ = writeln!(s, "## {title}\n");
         summary_table(&mut s, r, pick);
     }
+    speed_table(&mut s, r);
     super::verdict::markdown(&mut s, r);
     let _ = writeln!(s, "## Sets\n");
     for run in &r.runs {
@@ -135,6 +137,52 @@ fn summary_table(s: &mut String, r: &BenchRealReport, pick: fn(&MethodScores) ->
             "| **all {pixels} known pixels** | {cam} | {} |",
             cells.join(" | ")
         );
+    }
+    s.push('\n');
+}
+
+/// The EPE by ground-truth speed over all known pixels of each camera's sets: a row per method,
+/// MPI-Sintel's three classes per camera.
+fn speed_table(s: &mut String, r: &BenchRealReport) {
+    let Some(first) = r.runs.first() else {
+        return;
+    };
+    let _ = writeln!(
+        s,
+        "## EPE by ground-truth speed (px), all known pixels\n\nMPI-Sintel's classes: pixels \
+         whose true motion is below 10 px ({}), 10 to 40 px ({}), 40 px or more ({}); – where \
+         no pixel moves so.\n",
+        SPEED_CLASS_NAMES[0], SPEED_CLASS_NAMES[1], SPEED_CLASS_NAMES[2]
+    );
+    let pooled = |cam: &String, m: &MethodScores| {
+        r.summary
+            .iter()
+            .find(|x| &x.camera == cam && x.pooled.label() == m.label())
+            .map(|x| x.pooled.by_speed)
+    };
+    let mut head = String::from("| method |");
+    for cam in &r.cameras {
+        let pixels = first
+            .methods
+            .first()
+            .and_then(|m| pooled(cam, m))
+            .unwrap_or_default()
+            .pixels;
+        for (name, n) in SPEED_CLASS_NAMES.iter().zip(pixels) {
+            let _ = write!(head, " {cam} {name} ({n} px) |");
+        }
+    }
+    let _ = writeln!(s, "{head}\n|---|{}", "---|".repeat(3 * r.cameras.len()));
+    for m in &first.methods {
+        let mut row = format!("| {} |", short_label(m));
+        for cam in &r.cameras {
+            let b: EpeBySpeed = pooled(cam, m).unwrap_or_default();
+            for c in 0..3 {
+                let cell = b.get(c).map_or_else(|| "–".into(), |v| format!("{v:.3}"));
+                let _ = write!(row, " {cell} |");
+            }
+        }
+        let _ = writeln!(s, "{row}");
     }
     s.push('\n');
 }

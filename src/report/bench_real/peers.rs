@@ -52,6 +52,9 @@ pub struct PeerPair {
     pub px3: f64,
     pub px5: f64,
     pub ms: f64,
+    /// Absent from the JSON of scripts older than the speed classes.
+    #[serde(default)]
+    pub by_speed: crate::flow::metrics::EpeBySpeed,
 }
 
 /// One method over a dataset, with its pairs.
@@ -64,6 +67,8 @@ pub struct PeerMethod {
     pub px3: f64,
     pub px5: f64,
     pub ms_per_pair: f64,
+    #[serde(default)]
+    pub by_speed: crate::flow::metrics::EpeBySpeed,
     pub per_pair: Vec<PeerPair>,
 }
 

@@ -4,6 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::flow::metrics::EpeBySpeed;
+
 /// One method's scores over a set or one pair. `iters` is set for MMS rows only.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MethodScores {
@@ -16,6 +18,9 @@ pub struct MethodScores {
     pub px5: f64,
     /// Milliseconds per pair (over a set), or this pair's milliseconds.
     pub ms_per_pair: f64,
+    /// The EPE by ground-truth speed (Sintel's s0-10, s10-40, s40+; absent in older reports).
+    #[serde(default)]
+    pub by_speed: EpeBySpeed,
 }
 
 impl MethodScores {
@@ -123,9 +128,11 @@ pub fn summarise(cameras: &[String], runs: &[SetRun]) -> Vec<SummaryRow> {
             let label = m.label();
             let (mut n, mut pairs, mut pixels, mut ms) = (0usize, 0usize, 0u64, 0.0);
             let (mut acc, mut pooled) = ([0.0f64; 5], [0.0f64; 5]);
+            let mut speeds = Vec::new();
             for r in &of_cam {
                 if let Some(s) = r.methods.iter().find(|s| s.label() == label) {
                     n += 1;
+                    speeds.push(&s.by_speed);
                     pairs += r.pairs;
                     pixels += r.pixels;
                     ms += s.ms_per_pair * r.pairs as f64;
@@ -140,7 +147,7 @@ pub fn summarise(cameras: &[String], runs: &[SetRun]) -> Vec<SummaryRow> {
                 }
             }
             let ms = ms / pairs.max(1) as f64;
-            let row = |v: [f64; 5], k: f64| MethodScores {
+            let row = |v: [f64; 5], k: f64, by_speed: EpeBySpeed| MethodScores {
                 method: m.method.clone(),
                 iters: m.iters,
                 epe: v[0] / k,
@@ -149,11 +156,20 @@ pub fn summarise(cameras: &[String], runs: &[SetRun]) -> Vec<SummaryRow> {
                 px3: v[3] / k,
                 px5: v[4] / k,
                 ms_per_pair: ms,
+                by_speed,
             };
             out.push(SummaryRow {
                 camera: cam.clone(),
-                scores: row(acc, n.max(1) as f64),
-                pooled: row(pooled, pixels.max(1) as f64),
+                scores: row(
+                    acc,
+                    n.max(1) as f64,
+                    EpeBySpeed::mean_of(speeds.iter().copied()),
+                ),
+                pooled: row(
+                    pooled,
+                    pixels.max(1) as f64,
+                    EpeBySpeed::pooled(speeds.iter().copied()),
+                ),
                 sets: n,
                 pixels,
             });
@@ -176,6 +192,10 @@ mod tests {
             px3: 0.0,
             px5: 0.0,
             ms_per_pair: ms,
+            by_speed: EpeBySpeed {
+                pixels: [60, 40, 0],
+                epe: [epe / 2.0, 2.0 * epe, 0.0],
+            },
         }
     }
 
@@ -219,6 +239,15 @@ mod tests {
         // Pooled: 300 pixels at 1.0 and 100 at 3.0.
         assert_eq!((s[0].pooled.epe, s[0].pixels), (1.5, 400));
         assert_eq!(s[0].pooled.ms_per_pair, 15.0);
+        // By speed: the mean of the sets' class means, and pooled by the classes' pixels
+        // (each set 60 / 40 / 0 pixels); no set has an s40+ pixel, so neither has a score.
+        let (mean, pooled) = (s[0].scores.by_speed, s[0].pooled.by_speed);
+        assert_eq!(
+            (mean.get(0), mean.get(1), mean.get(2)),
+            (Some(1.0), Some(4.0), None)
+        );
+        assert_eq!(pooled.pixels, [120, 80, 0]);
+        assert_eq!((pooled.get(0), pooled.get(1)), (Some(1.0), Some(4.0)));
         assert_eq!((s[1].scores.epe, s[1].sets), (6.0, 2));
         assert_eq!((s[2].camera.as_str(), s[2].scores.epe), ("cam", 9.0));
     }

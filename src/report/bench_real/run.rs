@@ -231,6 +231,7 @@ fn mms_scores(model: &str, r: &EvalRow) -> MethodScores {
         px3: r.px3,
         px5: r.px5,
         ms_per_pair: r.ms_per_pair,
+        by_speed: r.by_speed,
     }
 }
 
@@ -244,6 +245,7 @@ fn zero_scores(z: &crate::flow::eval::ZeroFlow) -> MethodScores {
         px3: z.px3,
         px5: z.px5,
         ms_per_pair: 0.0,
+        by_speed: z.by_speed,
     }
 }
 
@@ -278,6 +280,7 @@ fn merge(
             px3: m.px3,
             px5: m.px5,
             ms_per_pair: m.ms_per_pair,
+            by_speed: m.by_speed,
         }));
     }
     methods.push(zero_scores(&eval.zero_flow));
@@ -324,6 +327,7 @@ fn merge(
                     px3: q.px3,
                     px5: q.px5,
                     ms_per_pair: q.ms,
+                    by_speed: q.by_speed,
                 });
             }
         }

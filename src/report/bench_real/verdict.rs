@@ -249,6 +249,7 @@ mod tests {
             px3: 0.0,
             px5: 0.0,
             ms_per_pair: 1.0,
+            by_speed: Default::default(),
         }
     }
 
