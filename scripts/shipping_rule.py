@@ -23,6 +23,8 @@ import json
 import sys
 
 ITERS = 12
+# MPI-Sintel's speed classes of `by_speed` (src/flow/metrics.rs): below 10 px, 10-40, 40 or more.
+SPEED_CLASSES = ("s0-10", "s10-40", "s40+")
 
 
 def fail(msg):
@@ -53,7 +55,8 @@ def method_of(methods):
 
 
 def scores(report, path):
-    """{(set, camera): epe} and {camera: pooled epe} of the report's 12-iteration MMS rows."""
+    """{(set, camera): epe}, {camera: pooled epe} and {camera: pooled by_speed} of the report's
+    12-iteration MMS rows (by_speed where the report has it)."""
     runs = report.get("runs")
     if not isinstance(runs, list) or not runs:
         fail(f"{path}: no runs (is it a `pins bench-real` report.json?)")
@@ -67,13 +70,15 @@ def scores(report, path):
             fail(f"{path}: sets scored by different methods ({method}, {m})")
         row = next(x for x in run["methods"] if x["method"] == m and x.get("iters") == ITERS)
         per_set[(run["set"], run["camera"])] = row["epe"]
-    pooled = {}
+    pooled, speeds = {}, {}
     for s in report.get("summary", []):
         if s["pooled"]["method"] == method and s["pooled"].get("iters") == ITERS:
             pooled[s["camera"]] = s["pooled"]["epe"]
+            if "by_speed" in s["pooled"]:
+                speeds[s["camera"]] = s["pooled"]["by_speed"]
     if "camera" not in pooled:
         fail(f"{path}: no pooled score through the camera for {method}")
-    return method, per_set, pooled
+    return method, per_set, pooled, speeds
 
 
 def s12_misses(report, path):
@@ -94,8 +99,8 @@ def main():
     ap.add_argument("--tolerance", type=float, default=0.02,
                     help="largest relative EPE rise allowed on any set (default 0.02)")
     a = ap.parse_args()
-    mc, cand, cand_pool = scores(load(a.candidate), a.candidate)
-    ms, ship, ship_pool = scores(load(a.shipped), a.shipped)
+    mc, cand, cand_pool, cand_speed = scores(load(a.candidate), a.candidate)
+    ms, ship, ship_pool, ship_speed = scores(load(a.shipped), a.shipped)
     if mc != ms:
         fail(f"the reports score different methods ({mc} against {ms})")
     if set(cand) != set(ship):
@@ -115,6 +120,15 @@ def main():
         if cam in cand_pool:
             s, c = ship_pool[cam], cand_pool[cam]
             print(f"| all known pixels | {cam} | {s:.3f} | {c:.3f} | {(c - s) / s:+.1%} | |")
+    # Where the change lies, by ground-truth speed (not part of the rule).
+    for cam in sorted(set(ship_speed) & set(cand_speed)):
+        s, c = ship_speed[cam], cand_speed[cam]
+        for k, name in enumerate(SPEED_CLASSES):
+            if s["pixels"][k] and c["pixels"][k]:
+                e0, e1 = s["epe"][k], c["epe"][k]
+                change = f"{(e1 - e0) / e0:+.1%}" if e0 > 0 else ""
+                print(f"| all pixels moving {name} ({s['pixels'][k]}) | {cam} | {e0:.3f} | "
+                      f"{e1:.3f} | {change} | |")
 
     misses = []
     for path in a.s12:

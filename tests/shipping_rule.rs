@@ -129,6 +129,26 @@ fn ships_only_better_weights_with_no_set_worse_and_every_case_found() {
     assert_eq!(code, Some(1), "{text}");
     assert!(text.contains("kitti clean +3.0%"), "{text}");
 
+    // Where the reports have the EPE by speed, its change is shown beside the rule, not in it.
+    let with_speed = |mut r: Value, s40: f64| {
+        r["summary"][1]["pooled"]["by_speed"] =
+            json!({"pixels": [900, 80, 20], "epe": [0.5, 4.0, s40]});
+        r
+    };
+    let (code, text) = verdict(&run(
+        &py,
+        tmp.path(),
+        &with_speed(bench(e, [2.20, 3.10]), 30.0),
+        &with_speed(ship.clone(), 20.0),
+        &[s12(true)],
+    ));
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("| all pixels moving s40+ (20) | camera | 20.000 | 30.000 | +50.0% | |"),
+        "{text}"
+    );
+    assert!(!text.contains("s40+ (20) | clean"), "{text}");
+
     // Every set better, but not over all pixels through the camera (the pooled score).
     let better = SHIPPED.map(|s| s.map(|x| 0.99 * x));
     let (code, text) = verdict(&run(
