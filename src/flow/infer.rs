@@ -15,11 +15,11 @@ use crate::imaging::resize::downscale;
 use crate::types::{Flow, Image};
 
 /// The shipped weights, compiled into the binary and named by `--weights NAME` (see docs/training.md
-/// for the commands that made them): `mms-small-real` (stage 8: the training campaign's
-/// weights, cooled down, after stages 1–7 and nine campaigns of photographic, large-motion,
-/// road, flat-object and large-frame training; the best flow on real images, so `default`
-/// for the flow commands) and `mms-small` (stage 3, on the generator's chairs; the tracker's weights, whose
-/// small movers' flow the tracking clips measured better).
+/// for the commands that made them): `mms-small-real` (the training campaign's weights, cooled
+/// down, after stages 1–7 and nine campaigns of photographic, large-motion, road, flat-object
+/// and large-frame training; its stage in its model card; the best flow on real images, so
+/// `default` for the flow commands and the tracker) and `mms-small` (stage 3, on the
+/// generator's chairs; `pins live`'s default).
 pub const BUILTIN_WEIGHTS: [(&str, &str, &[u8]); 2] = [
     (
         "mms-small-real",

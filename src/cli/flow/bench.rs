@@ -102,7 +102,7 @@ pub(crate) struct DetectLimitsArgs {
     /// Output folder: report.json, report.md and fig_s10.png.
     #[arg(long)]
     out: PathBuf,
-    /// Weights file, or built-in weights: default (= mms-small-real, stage 8), mms-small (stage 3).
+    /// Weights file, or built-in weights: default (= mms-small-real, the training campaign's shipped weights), mms-small (stage 3).
     #[arg(long, default_value = "default")]
     weights: String,
     /// Iteration counts; override the config's.

@@ -9,7 +9,7 @@ use pins::io::{self, BitDepth};
 
 #[derive(clap::Args)]
 pub(crate) struct InferArgs {
-    /// Weights file, or built-in weights: default (= mms-small-real, stage 8), mms-small (stage 3).
+    /// Weights file, or built-in weights: default (= mms-small-real, the training campaign's shipped weights), mms-small (stage 3).
     #[arg(long, default_value = "default")]
     weights: String,
     /// First image (or, with --frames, omit both images).
@@ -58,7 +58,7 @@ pub(crate) struct InferArgs {
 
 #[derive(clap::Args)]
 pub(crate) struct EvalArgs {
-    /// Weights file, or built-in weights: default (= mms-small-real, stage 8), mms-small (stage 3).
+    /// Weights file, or built-in weights: default (= mms-small-real, the training campaign's shipped weights), mms-small (stage 3).
     #[arg(long, default_value = "default")]
     weights: String,
     /// Dataset folder with ground-truth flow.
