@@ -55,18 +55,18 @@ impl EpeBySpeed {
     /// The mean of `parts`' class means, each class over the parts that have pixels in it
     /// (every set weighs the same, as the benchmark's "mean of sets"); pixels are summed.
     pub fn mean_of<'a>(parts: impl IntoIterator<Item = &'a EpeBySpeed>) -> EpeBySpeed {
-        let (mut out, mut n) = (EpeBySpeed::default(), [0usize; 3]);
+        let (mut out, mut sets) = (EpeBySpeed::default(), [0usize; 3]);
         for p in parts {
-            for c in 0..3 {
+            for (c, n) in sets.iter_mut().enumerate() {
                 if p.pixels[c] > 0 {
                     out.pixels[c] += p.pixels[c];
                     out.epe[c] += p.epe[c];
-                    n[c] += 1;
+                    *n += 1;
                 }
             }
         }
-        for c in 0..3 {
-            out.epe[c] /= n[c].max(1) as f64;
+        for (e, n) in out.epe.iter_mut().zip(sets) {
+            *e /= n.max(1) as f64;
         }
         out
     }
