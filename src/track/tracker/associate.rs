@@ -48,11 +48,15 @@ pub struct Association {
 /// away (7 ID switches; 5 with the gate in radii, the 640×480 clips unchanged).
 pub const GATE_RADII: f64 = 2.7;
 
-/// Track `t`'s gate before it widens with coasting: `gate_px`, or `GATE_RADII` of its
-/// object's radius where that is less.
+/// Track `t`'s gate before it widens with coasting (`object_gate`).
 fn gate(t: &Tracked, config: &TrackerConfig) -> f64 {
-    t.radius
-        .map_or(config.gate_px, |r| config.gate_px.min(GATE_RADII * r))
+    object_gate(t.radius, config)
+}
+
+/// The gate of a track whose object has `radius` (px, when known): `gate_px`, or
+/// `GATE_RADII` of the radius where that is less.
+pub fn object_gate(radius: Option<f64>, config: &TrackerConfig) -> f64 {
+    radius.map_or(config.gate_px, |r| config.gate_px.min(GATE_RADII * r))
 }
 
 /// Matches `detections` to `tracks` (see the module's text).

@@ -17,7 +17,7 @@ use std::collections::VecDeque;
 use serde::Serialize;
 
 use super::appearance::Appearance;
-use super::associate::{Association, Tracked, associate};
+use super::associate::{Association, Tracked, associate, object_gate};
 use super::reid::Lost;
 pub use super::tracker_config::TrackerConfig;
 use crate::error::{Error, Result};
@@ -88,6 +88,18 @@ struct Track {
     last_seen: (usize, (f64, f64)),
     /// The largest motion (px/frame) of its detections: the mean flow's or the aligned one.
     top_speed: f64,
+}
+
+impl Track {
+    /// Its object's radius (px): that of a disc of its whole detections' median area.
+    fn radius(&self) -> Option<f64> {
+        median(&self.areas).map(|a| (a / std::f64::consts::PI).sqrt())
+    }
+
+    /// Its gate before coasting widens it (`associate::object_gate`).
+    fn gate(&self, config: &TrackerConfig) -> f64 {
+        object_gate(self.radius(), config)
+    }
 }
 
 /// What became of one detection in the last frame (for the debug output).
@@ -214,7 +226,7 @@ impl Tracker {
                 misses: t.misses,
                 confirmed: t.confirmed,
                 appearance: t.appearance.as_ref(),
-                radius: median(&t.areas).map(|a| (a / std::f64::consts::PI).sqrt()),
+                radius: t.radius(),
             })
             .collect();
         let Association { matches, shared } = associate(&view, detections, &self.config);
@@ -421,6 +433,7 @@ impl Tracker {
                     id: t.id,
                     last_seen: t.last_seen,
                     top_speed: t.top_speed,
+                    gate: t.gate(&self.config),
                     appearance: a,
                 });
             }

@@ -20,32 +20,38 @@ pub(crate) struct Lost {
     pub last_seen: (usize, (f64, f64)),
     /// The largest motion of its detections (px/frame).
     pub top_speed: f64,
+    /// Its gate before coasting widened it (px): `TrackerConfig::gate_px`, or
+    /// `associate::GATE_RADII` of its object's radius where that is less.
+    pub gate: f64,
     pub appearance: Appearance,
 }
 
 /// What a re-identification compares of an old track: where and when it was last seen, how
-/// fast its object went and what colour it had.
+/// fast its object went, its gate and what colour it had.
 pub(crate) struct Candidate<'a> {
     pub last_seen: (usize, (f64, f64)),
     pub top_speed: f64,
+    /// As `Lost::gate`.
+    pub gate: f64,
     pub appearance: &'a Appearance,
 }
 
 /// The cost at which a new track, first detected at `born` (frame, centre) with mean colour
 /// `colour`, may be the object of `c`: its colour distance (standard deviations of the old
 /// track's colour, each at least `floor` levels) over `k`, plus its distance from where `c`
-/// was last seen over the reach `gate_px` + `REACH_SPEED_FACTOR` × `c`'s top speed × the
-/// frames between; each term is at most 1. `None` where it cannot be: born before `c` was last
-/// seen, farther than the reach, or more than `k` from its colour. The distance term tells two
-/// old tracks of one colour apart: on a 320×240 clip a disc hidden for 30 frames came back
-/// 83 px from where its own track ended and 254 px from where another disc's left the view,
-/// 1.3 and 1.2 of their spreads in colour. An old track with too few colours is never
+/// was last seen over the reach `c.gate` + `REACH_SPEED_FACTOR` × `c`'s top speed × the
+/// frames between; each term is at most 1. The reach starts from the track's own gate, as
+/// association's does: with `gate_px` whole, a 320×240 track whose disc (radius 8, 21.6 px
+/// gate) was last seen a frame before took back its ID on another disc born 44 px away.
+/// `None` where it cannot be: born before `c` was last seen, farther than the reach, or more
+/// than `k` from its colour. The distance term tells two old tracks of one colour apart: on a
+/// 320×240 clip a disc hidden for 30 frames came back 83 px from where its own track ended and
+/// 254 px from where another disc's left the view, 1.3 and 1.2 of their spreads in colour. An old track with too few colours is never
 /// re-identified.
 pub(crate) fn reid_cost(
     c: &Candidate,
     born: (usize, (f64, f64)),
     colour: [f64; 3],
-    gate_px: f64,
     floor: f64,
     k: f64,
 ) -> Option<f64> {
@@ -53,7 +59,7 @@ pub(crate) fn reid_cost(
     if born.0 <= then || !c.appearance.is_mature() {
         return None;
     }
-    let reach = gate_px + REACH_SPEED_FACTOR * c.top_speed * (born.0 - then) as f64;
+    let reach = c.gate + REACH_SPEED_FACTOR * c.top_speed * (born.0 - then) as f64;
     let dist = (born.1.0 - at.0).hypot(born.1.1 - at.1);
     let d = c.appearance.distance(colour, floor);
     (dist <= reach && d <= k).then_some(d / k + dist / reach)
@@ -78,9 +84,10 @@ mod tests {
         let c = Candidate {
             last_seen: (20, (100.0, 100.0)),
             top_speed: 3.0,
+            gate: 40.0,
             appearance: &a,
         };
-        let score = |born, colour| reid_cost(&c, born, colour, 40.0, 8.0, 3.0);
+        let score = |born, colour| reid_cost(&c, born, colour, 8.0, 3.0);
         let same = [201.0, 41.0, 39.0];
         // Ten frames later, 75 px away (within 77.5): its colour, a small distance; nearer
         // where it was last seen, a smaller cost.
@@ -103,9 +110,23 @@ mod tests {
             appearance: &young,
             ..c
         };
+        assert_eq!(reid_cost(&c, (30, (120.0, 100.0)), same, 8.0, 3.0), None);
+        // A small object's gate (21.6 px for a disc of radius 8) starts the reach: a frame
+        // after it was last seen, 44 px away is too far (40 + 3.75 would reach it).
+        let small = Candidate { gate: 21.6, ..c };
+        let young_free = Candidate {
+            appearance: &a,
+            ..small
+        };
         assert_eq!(
-            reid_cost(&c, (30, (120.0, 100.0)), same, 40.0, 8.0, 3.0),
+            reid_cost(&young_free, (21, (144.0, 100.0)), same, 8.0, 3.0),
             None
         );
+        assert!(reid_cost(&young_free, (21, (124.0, 100.0)), same, 8.0, 3.0).is_some());
+        let wide = Candidate {
+            gate: 40.0,
+            ..young_free
+        };
+        assert!(reid_cost(&wide, (21, (143.0, 100.0)), same, 8.0, 3.0).is_some());
     }
 }

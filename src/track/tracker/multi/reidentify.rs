@@ -21,25 +21,27 @@ impl Tracker {
         let colour = t.appearance.as_ref()?.mean();
         let born = t.born;
         let config = &self.config;
-        let (gate, floor, k) = (config.gate_px, config.appearance_floor, config.reid_k);
+        let (floor, k) = (config.appearance_floor, config.reid_k);
         let coasting = self.tracks.iter().enumerate().filter_map(|(j, o)| {
             let c = Candidate {
                 last_seen: o.last_seen,
                 top_speed: o.top_speed,
+                gate: o.gate(config),
                 appearance: o.appearance.as_ref()?,
             };
             let fresh = o.id == 0 || j == i || !o.confirmed || o.misses == 0;
             let k = (!fresh && frame.saturating_sub(o.last_seen.0) <= config.reid_frames)
-                .then(|| reid_cost(&c, born, colour, gate, floor, k))??;
+                .then(|| reid_cost(&c, born, colour, floor, k))??;
             Some((k, Ok(j)))
         });
         let ended = self.lost.iter().enumerate().filter_map(|(j, l)| {
             let c = Candidate {
                 last_seen: l.last_seen,
                 top_speed: l.top_speed,
+                gate: l.gate,
                 appearance: &l.appearance,
             };
-            Some((reid_cost(&c, born, colour, gate, floor, k)?, Err(j)))
+            Some((reid_cost(&c, born, colour, floor, k)?, Err(j)))
         });
         let best = coasting.chain(ended).min_by(|a, b| a.0.total_cmp(&b.0))?;
         Some(match best.1 {

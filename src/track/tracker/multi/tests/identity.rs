@@ -146,17 +146,25 @@ fn an_object_seen_again_takes_its_id_back_and_another_one_does_not() {
 
 #[test]
 fn a_new_track_on_a_coasting_tracks_object_takes_its_id_and_it_ends() {
-    // Hidden for 6 frames, then 45 px below its path and moving down: too far for the
-    // second association and too different in motion for the gate of A's coasting track,
-    // so a new track starts on A and is confirmed while A's track still coasts.
-    let (on_a, _) = hide_and_return(TrackerConfig::default(), 26, 45.0, (0.0, 3.0), 0);
+    // Hidden for 10 frames, then 35 px below its path and moving down: too far for the
+    // second association (30 px) and too different in motion for the gate of A's coasting
+    // track, so a new track starts on A and is confirmed while A's track still coasts. It is
+    // 48 px from where A was last seen 11 frames before, within the reach of A's gate (9.6 px:
+    // 2.7 radii of its 3.6 px) and 1.25 × 3 px for each frame.
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 30, 35.0, (0.0, 3.0), 0);
     assert!(on_a.iter().all(|&(_, id)| id == 1), "A: {on_a:?}");
     assert!(on_a.iter().any(|&(n, _)| n >= 40), "A seen again: {on_a:?}");
+    // 45 px below, 56 px from where it was last seen: beyond that reach, a new object.
+    let (on_a, _) = hide_and_return(TrackerConfig::default(), 30, 45.0, (0.0, 3.0), 0);
+    assert!(
+        on_a.iter().any(|&(n, id)| n >= 40 && id != 1),
+        "A: {on_a:?}"
+    );
     let off = TrackerConfig {
         reid_frames: 0,
         ..TrackerConfig::default()
     };
-    let (on_a, _) = hide_and_return(off, 26, 45.0, (0.0, 3.0), 0);
+    let (on_a, _) = hide_and_return(off, 30, 35.0, (0.0, 3.0), 0);
     assert!(on_a.iter().any(|&(_, id)| id != 1), "A: {on_a:?}");
     // With coasting tracks reported, the old track's estimate goes when its ID is taken.
     let (on_a, _) = hide_and_return(
@@ -164,8 +172,8 @@ fn a_new_track_on_a_coasting_tracks_object_takes_its_id_and_it_ends() {
             max_coast_reported: 15,
             ..TrackerConfig::default()
         },
-        26,
-        45.0,
+        30,
+        35.0,
         (0.0, 3.0),
         0,
     );
