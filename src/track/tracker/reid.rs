@@ -46,8 +46,8 @@ pub(crate) struct Candidate<'a> {
 /// `None` where it cannot be: born before `c` was last seen, farther than the reach, or more
 /// than `k` from its colour. The distance term tells two old tracks of one colour apart: on a
 /// 320×240 clip a disc hidden for 30 frames came back 83 px from where its own track ended and
-/// 254 px from where another disc's left the view, 1.3 and 1.2 of their spreads in colour. An old track with too few colours is never
-/// re-identified.
+/// 254 px from where another disc's left the view, 1.3 and 1.2 of their spreads in colour. An
+/// old track with too few colours is never re-identified.
 pub(crate) fn reid_cost(
     c: &Candidate,
     born: (usize, (f64, f64)),
@@ -113,19 +113,20 @@ mod tests {
         assert_eq!(reid_cost(&c, (30, (120.0, 100.0)), same, 8.0, 3.0), None);
         // A small object's gate (21.6 px for a disc of radius 8) starts the reach: a frame
         // after it was last seen, 44 px away is too far (40 + 3.75 would reach it).
-        let small = Candidate { gate: 21.6, ..c };
-        let young_free = Candidate {
+        // (The old track's colour mature again.)
+        let small = Candidate {
+            gate: 21.6,
             appearance: &a,
-            ..small
+            ..c
         };
         assert_eq!(
-            reid_cost(&young_free, (21, (144.0, 100.0)), same, 8.0, 3.0),
+            reid_cost(&small, (21, (144.0, 100.0)), same, 8.0, 3.0),
             None
         );
-        assert!(reid_cost(&young_free, (21, (124.0, 100.0)), same, 8.0, 3.0).is_some());
+        assert!(reid_cost(&small, (21, (124.0, 100.0)), same, 8.0, 3.0).is_some());
         let wide = Candidate {
             gate: 40.0,
-            ..young_free
+            ..small
         };
         assert!(reid_cost(&wide, (21, (143.0, 100.0)), same, 8.0, 3.0).is_some());
     }
