@@ -6,7 +6,8 @@
 //! - `tracker_config.rs`: the tracker's settings (`TrackerConfig`) and their defaults.
 //! - `hungarian.rs`: optimal assignment with a gate.
 //! - `appearance.rs`: a track's colour, its running mean and variance.
-//! - `associate.rs`: gated assignment of detections to tracks, merges, weak detections.
+//! - `associate.rs` (tests in `associate/tests.rs`): gated assignment of detections to tracks,
+//!   merges, weak detections.
 //! - `consistency.rs`: the motion-consistency test of a tentative track.
 //! - `reid.rs`: re-identification of an ended or coasting track.
 //! - `multi.rs` (tests in `multi/tests.rs`, `multi/tests/identity.rs`): the tracker's frame step
