@@ -16,7 +16,9 @@ defaults and `--start zero`) detects every case at every iteration count.
 
 Both bench-real reports must come from the same build and config (a comparison is always
 between weights scored with the same refinement). Prints one row per set and camera and the
-verdict; exits 0 when the candidate ships, 1 when it does not, 2 on unusable input.
+verdict, then for each set outside the tolerance its pairs (the set's EPE is over all its pixels,
+so one pair can decide it), each with its EPE over pixels moving 40 px or more where the reports
+have it; exits 0 when the candidate ships, 1 when it does not, 2 on unusable input.
 """
 import argparse
 import json
@@ -54,6 +56,30 @@ def method_of(methods):
     return None
 
 
+def row_of(methods, method):
+    return next((x for x in methods if x["method"] == method and x.get("iters") == ITERS), None)
+
+
+def pairs(report, method):
+    """{(set, camera): [(name, source, mean |flow|, epe, s40+ epe or None)]} of the report's
+    12-iteration rows of `method` (empty for reports without `per_pair`)."""
+    out = {}
+    for run in report.get("runs", []):
+        rows = []
+        for p in run.get("per_pair", []):
+            m = row_of(p.get("methods", []), method)
+            if m is None:
+                continue
+            speed = m.get("by_speed") or {}
+            fast = None
+            if len(speed.get("pixels", [])) == 3 and speed["pixels"][2]:
+                fast = speed["epe"][2]
+            rows.append((p.get("name", "?"), p.get("source", "?"), p.get("mean_gt", 0.0),
+                         m["epe"], fast))
+        out[(run["set"], run["camera"])] = rows
+    return out
+
+
 def scores(report, path):
     """{(set, camera): epe}, {camera: pooled epe} and {camera: pooled by_speed} of the report's
     12-iteration MMS rows (by_speed where the report has it)."""
@@ -68,7 +94,7 @@ def scores(report, path):
         method = method or m
         if m != method:
             fail(f"{path}: sets scored by different methods ({method}, {m})")
-        row = next(x for x in run["methods"] if x["method"] == m and x.get("iters") == ITERS)
+        row = row_of(run["methods"], m)
         per_set[(run["set"], run["camera"])] = row["epe"]
     pooled, speeds = {}, {}
     for s in report.get("summary", []):
@@ -91,6 +117,27 @@ def s12_misses(report, path):
     ]
 
 
+def print_pairs(keys, cand, ship):
+    """Per pair of each set outside the tolerance: which pairs moved the set's EPE."""
+    keys = [k for k in keys if cand.get(k) and ship.get(k)]
+    if not keys:
+        return
+    print()
+    print("| set | camera | pair (source) | mean flow (px) | shipped EPE | candidate EPE | change "
+          "| shipped s40+ | candidate s40+ |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    fmt = lambda v: "–" if v is None else f"{v:.2f}"
+    for key in keys:
+        theirs = {r[0]: r for r in ship[key]}
+        for name, source, mean_gt, c, c_fast in cand[key]:
+            if name not in theirs:
+                continue
+            s, s_fast = theirs[name][3], theirs[name][4]
+            change = f"{(c - s) / s:+.1%}" if s > 0 else ""
+            print(f"| {key[0]} | {key[1]} | {name} ({source}) | {mean_gt:.1f} | {s:.3f} | {c:.3f} "
+                  f"| {change} | {fmt(s_fast)} | {fmt(c_fast)} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("candidate", help="bench-real report.json of the candidate weights")
@@ -99,8 +146,9 @@ def main():
     ap.add_argument("--tolerance", type=float, default=0.02,
                     help="largest relative EPE rise allowed on any set (default 0.02)")
     a = ap.parse_args()
-    mc, cand, cand_pool, cand_speed = scores(load(a.candidate), a.candidate)
-    ms, ship, ship_pool, ship_speed = scores(load(a.shipped), a.shipped)
+    cand_report, ship_report = load(a.candidate), load(a.shipped)
+    mc, cand, cand_pool, cand_speed = scores(cand_report, a.candidate)
+    ms, ship, ship_pool, ship_speed = scores(ship_report, a.shipped)
     if mc != ms:
         fail(f"the reports score different methods ({mc} against {ms})")
     if set(cand) != set(ship):
@@ -108,13 +156,14 @@ def main():
 
     print(f"| set | camera | shipped EPE | candidate EPE | change | within {a.tolerance:.0%} |")
     print("|---|---|---|---|---|---|")
-    worse = []
+    worse, worse_keys = [], []
     for key in sorted(ship, key=lambda k: (k[1], k[0])):
         s, c = ship[key], cand[key]
         change = (c - s) / s if s > 0 else 0.0
         ok = change <= a.tolerance
         if not ok:
             worse.append(f"{key[0]} {key[1]} {change:+.1%}")
+            worse_keys.append(key)
         print(f"| {key[0]} | {key[1]} | {s:.3f} | {c:.3f} | {change:+.1%} | {'yes' if ok else '**no**'} |")
     for cam in sorted(ship_pool):
         if cam in cand_pool:
@@ -129,6 +178,8 @@ def main():
                 change = f"{(e1 - e0) / e0:+.1%}" if e0 > 0 else ""
                 print(f"| all pixels moving {name} ({s['pixels'][k]}) | {cam} | {e0:.3f} | "
                       f"{e1:.3f} | {change} | |")
+
+    print_pairs(worse_keys, pairs(cand_report, mc), pairs(ship_report, ms))
 
     misses = []
     for path in a.s12:

@@ -1,8 +1,9 @@
 //! `scripts/shipping_rule.py` (the training ledger's rule for shipping weights): on bench-real
 //! and detect-limits reports of the shape the commands write, it ships a candidate only when it
 //! is better over all pixels through the camera, no set is more than 2 % worse and every Note
-//! S12 case is detected, and names what failed otherwise. Runs where Python 3 is found
-//! (`PINS_PYTHON`, else `python3`); says SKIPPED otherwise.
+//! S12 case is detected, and names what failed otherwise, down to the pairs of a set outside the
+//! tolerance. Runs where Python 3 is found (`PINS_PYTHON`, else `python3`); says SKIPPED
+//! otherwise.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -198,4 +199,49 @@ fn unusable_reports_are_refused_with_the_reason() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("bad.json"));
+}
+
+/// `report` with two pairs in KITTI through the camera (set index 1, camera 1), their refined
+/// 12-iteration EPEs `epe` and EPEs over pixels moving 40 px or more `fast`.
+fn with_pairs(mut report: Value, epe: [f64; 2], fast: [f64; 2]) -> Value {
+    let per_pair: Vec<Value> = (0..2)
+        .map(|i| {
+            json!({"name": format!("0000{i}"), "source": format!("src{i}"), "mean_gt": 30.0 + i as f64,
+                "methods": [
+                    {"method": "mms-small", "iters": 12, "epe": 99.0},
+                    {"method": "mms-small + variational", "iters": 12, "epe": epe[i],
+                     "by_speed": {"pixels": [10, 10, 5], "epe": [1.0, 2.0, fast[i]]}},
+                ]})
+        })
+        .collect();
+    report["runs"][3]["per_pair"] = Value::Array(per_pair);
+    report
+}
+
+#[test]
+fn the_pairs_of_a_set_outside_the_tolerance_are_shown() {
+    let Some(py) = python() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let ship = with_pairs(bench(SHIPPED, [2.23, 3.28]), [14.0, 14.6], [20.0, 21.0]);
+    // KITTI through the camera 10 % worse, all of it in its second pair's fast pixels.
+    let mut e = SHIPPED;
+    e[1][1] *= 1.1;
+    let cand = with_pairs(bench(e, [2.20, 3.10]), [14.0, 17.5], [20.0, 38.5]);
+    let (code, text) = verdict(&run(&py, tmp.path(), &cand, &ship, &[]));
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains(
+            "| kitti | camera | 00001 (src1) | 31.0 | 14.600 | 17.500 | +19.9% | 21.00 | 38.50 |"
+        ),
+        "{text}"
+    );
+    assert!(
+        text.contains("| kitti | camera | 00000 (src0) | 30.0 | 14.000 | 14.000 | +0.0% |"),
+        "{text}"
+    );
+    // Within the tolerance everywhere: no pair table.
+    let cand = with_pairs(bench(SHIPPED, [2.20, 3.10]), [14.0, 14.6], [20.0, 21.0]);
+    let (code, text) = verdict(&run(&py, tmp.path(), &cand, &ship, &[]));
+    assert_eq!(code, Some(0), "{text}");
+    assert!(!text.contains("pair (source)"), "{text}");
 }
