@@ -443,65 +443,13 @@ impl Tracker {
             .retain(|l| keep > 0 && frame.saturating_sub(l.last_seen.0) <= keep);
         self.tracks
             .retain(|t| t.misses <= patience && (t.confirmed || t.misses <= tentative_patience));
-        for (j, d) in detections.iter().enumerate() {
-            // A weak detection (`track::detect::retry`) continues a track, never starts one.
-            if used[j] || d.weak {
-                continue;
-            }
-            if let Some(t) = self.tracks.iter().find(|t| {
-                t.confirmed
-                    && (t.centre.0 - d.centroid.0).hypot(t.centre.1 - d.centroid.1) <= exclusion
-            }) {
-                self.assignments[j] = Some(Assignment {
-                    key: t.key,
-                    id: Some(t.id),
-                    state: "fragment",
-                });
-                continue;
-            }
-            let mut mtp = Mtp::new(self.config.mtp.clone())?;
-            let e = mtp.step_at(step, Some(d), horizon)?;
-            let mut t = Track {
-                id: 0,
-                born: (frame, d.centroid),
-                last_seen: (frame, e.centroid),
-                top_speed: 0.0,
-                key: self.next_key,
-                mtp,
-                window: VecDeque::from([hit(d, step.span)]),
-                last_motion: per_frame(d),
-                hits: 1,
-                misses: 0,
-                confirmed: false,
-                predicted: e.next,
-                centre: e.centroid,
-                areas: VecDeque::from([d.pixels]),
-                appearance: d.colour.map(Appearance::new),
-            };
-            self.next_key += 1;
-            // With a window of one frame there is nothing to compare: confirmed at once.
-            if confirm <= 1 {
-                t.confirmed = true;
-                t.id = self.next_id;
-                self.next_id += 1;
-                out.push(TrackEstimate {
-                    id: t.id,
-                    estimate: e,
-                    observed: true,
-                });
-            }
-            self.assignments[j] = Some(Assignment {
-                key: t.key,
-                id: t.confirmed.then_some(t.id),
-                state: "new",
-            });
-            self.tracks.push(t);
-        }
+        self.births(step, detections, &used, horizon, &mut out)?;
         out.sort_by_key(|t| t.id);
         Ok(out)
     }
 }
 
+mod births;
 mod reidentify;
 #[cfg(test)]
 mod tests;
