@@ -3,19 +3,13 @@
 //! the slope of each component; bad files are refused with the reason. Runs where Python has
 //! numpy (`PINS_PYTHON`, else `python3`); says SKIPPED otherwise.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn python() -> Option<String> {
-    let py = std::env::var("PINS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let found = Command::new(&py)
-        .args(["-c", "import numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !found {
-        eprintln!("SKIPPED flow_response: {py} lacks numpy (set PINS_PYTHON)");
-    }
-    found.then_some(py)
+    common::python("flow_response", "numpy")
 }
 
 fn script() -> PathBuf {

@@ -4,19 +4,13 @@
 //! Runs where Python has numpy, Pillow and torch (`PINS_PYTHON`, else `python3`); says SKIPPED
 //! otherwise.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn python() -> Option<String> {
-    let py = std::env::var("PINS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let found = Command::new(&py)
-        .args(["-c", "import numpy, PIL, torch"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !found {
-        eprintln!("SKIPPED motion_stages: {py} lacks numpy, Pillow or torch (set PINS_PYTHON)");
-    }
-    found.then_some(py)
+    common::python("motion_stages", "numpy, PIL, torch")
 }
 
 fn repo(p: &str) -> PathBuf {

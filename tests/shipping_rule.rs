@@ -5,21 +5,15 @@
 //! tolerance. Runs where Python 3 is found (`PINS_PYTHON`, else `python3`); says SKIPPED
 //! otherwise.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::{Value, json};
 
 fn python() -> Option<String> {
-    let py = std::env::var("PINS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let found = Command::new(&py)
-        .args(["-c", "import json"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !found {
-        eprintln!("SKIPPED shipping_rule: no {py} (set PINS_PYTHON)");
-    }
-    found.then_some(py)
+    common::python("shipping_rule", "json")
 }
 
 fn script() -> PathBuf {

@@ -176,3 +176,17 @@ pub fn train(
     args.extend_from_slice(extra);
     pins_with_threads(&args, threads)
 }
+
+/// The Python interpreter of the script tests (`PINS_PYTHON`, else `python3`) when it can
+/// `import modules` (e.g. "numpy, PIL"); otherwise says SKIPPED for `test` and gives `None`.
+pub fn python(test: &str, modules: &str) -> Option<String> {
+    let py = std::env::var("PINS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let found = Command::new(&py)
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        eprintln!("SKIPPED {test}: {py} cannot import {modules} (set PINS_PYTHON)");
+    }
+    found.then_some(py)
+}
